@@ -1,0 +1,264 @@
+//! Stage 2 — the lightmap atlas (the only file that uses `uvunwrap`).
+//!
+//! Each scene mesh is unwrapped once (charts never span two materials) and
+//! every instance of it gets its own rectangle at a fixed texel density,
+//! scaled by the instance's uniform scale: a vertex's atlas coordinate is
+//! `rect.min + uv · (rect.max − rect.min)`, Bevy's `Lightmap::uv_rect`
+//! convention. `--uv existing` repacks the input `TEXCOORD_1` islands instead.
+
+use crate::config::{BakeConfig, UvSource};
+use crate::error::{Error, Result};
+use crate::scene::Scene;
+use glam::Vec2;
+
+/// One mesh's unwrap: its triangles re-indexed onto new vertices (split at
+/// chart seams), each with its input vertex (`xref`), its UV in `[0, 1]` of
+/// each instance rectangle, and its chart.
+#[derive(Clone, Debug, Default)]
+pub struct MeshUnwrap {
+    /// Input vertex of each output vertex.
+    pub xref: Vec<u32>,
+    /// UV in `[0, 1]` of the instance rectangle.
+    pub uv: Vec<Vec2>,
+    /// Chart of each output vertex (`u32::MAX`: none).
+    pub chart: Vec<u32>,
+    /// Same triangles as the mesh, indexing the output vertices.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Where one instance lives in the atlas.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct InstanceRect {
+    /// Atlas page.
+    pub page: u32,
+    /// Corner with the smallest coordinates, in `[0, 1]` page coordinates.
+    pub min: [f32; 2],
+    /// Opposite corner.
+    pub max: [f32; 2],
+}
+
+impl InstanceRect {
+    /// Atlas texel coordinate (not normalised) of a UV in this rectangle.
+    pub fn to_texels(&self, uv: Vec2, width: u32, height: u32) -> Vec2 {
+        let min = Vec2::from(self.min);
+        let max = Vec2::from(self.max);
+        (min + uv * (max - min)) * Vec2::new(width as f32, height as f32)
+    }
+}
+
+/// The lightmap atlas.
+#[derive(Clone, Debug)]
+pub struct Atlas {
+    /// Page width (texels).
+    pub width: u32,
+    /// Page height (texels).
+    pub height: u32,
+    /// Number of pages.
+    pub page_count: u32,
+    /// Texel density used (texels per metre).
+    pub texels_per_meter: f32,
+    /// Number of charts (per mesh layout, not counting instances).
+    pub chart_count: u32,
+    /// Fraction of the atlas covered by charts.
+    pub utilization: f32,
+    /// Per scene mesh.
+    pub meshes: Vec<MeshUnwrap>,
+    /// Per scene instance.
+    pub instances: Vec<InstanceRect>,
+    /// Density lowered to respect `max_texels`, and why.
+    pub warnings: Vec<String>,
+}
+
+/// Unwraps every mesh of `scene` and packs every instance.
+///
+/// # Errors
+/// [`Error::Unwrap`] when `uvunwrap` fails; [`Error::Config`] when
+/// `--uv existing` is asked for and a mesh has no `TEXCOORD_1`.
+pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
+    let mut warnings = Vec::new();
+    // Instances of each mesh, and their scales.
+    let mut mesh_instances: Vec<Vec<usize>> = vec![Vec::new(); scene.meshes.len()];
+    for (i, inst) in scene.instances.iter().enumerate() {
+        mesh_instances[inst.mesh as usize].push(i);
+    }
+    let scales: Vec<Vec<f32>> = mesh_instances
+        .iter()
+        .map(|list| list.iter().map(|&i| scene.instances[i].uniform_scale()).collect())
+        .collect();
+
+    // Density: lowered when the surface would need more than max_texels.
+    let mut area = 0.0f64;
+    for (m, mesh) in scene.meshes.iter().enumerate() {
+        let local: f64 = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let p = t.map(|i| mesh.positions[i as usize]);
+                0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length() as f64
+            })
+            .sum();
+        area += scales[m].iter().map(|s| local * (*s as f64).powi(2)).sum::<f64>();
+    }
+    let mut density = config.texels_per_meter;
+    // Packing leaves about a third of the atlas empty.
+    let estimate = area * (density as f64).powi(2) / 0.6;
+    if estimate > config.max_texels as f64 {
+        let lowered = (config.max_texels as f64 * 0.6 / area).sqrt() as f32;
+        warnings.push(format!(
+            "texels_per_meter {density} would need ~{:.1} M texels for {area:.0} m² of surface; lowered to {lowered:.2} to stay under max_texels = {}",
+            estimate / 1e6,
+            config.max_texels
+        ));
+        density = lowered;
+    }
+
+    let positions: Vec<Vec<[f32; 3]>> = scene
+        .meshes
+        .iter()
+        .map(|m| m.positions.iter().map(|p| p.to_array()).collect())
+        .collect();
+    let indices: Vec<Vec<u32>> = scene
+        .meshes
+        .iter()
+        .map(|m| m.triangles.iter().flatten().copied().collect())
+        .collect();
+    let uv1: Vec<Option<Vec<[f32; 2]>>> = scene
+        .meshes
+        .iter()
+        .map(|m| m.uv1.as_ref().map(|u| u.iter().map(|v| v.to_array()).collect()))
+        .collect();
+    let mut inputs = Vec::with_capacity(scene.meshes.len());
+    for (m, mesh) in scene.meshes.iter().enumerate() {
+        let existing_uvs = match config.uv {
+            UvSource::Unwrap => None,
+            UvSource::Existing => Some(uv1[m].as_deref().ok_or_else(|| Error::Config {
+                key: "uv".into(),
+                message: format!("`existing` needs TEXCOORD_1, but mesh `{}` has none", mesh.name),
+            })?),
+        };
+        inputs.push(uvunwrap::MeshInput {
+            face_materials: Some(&mesh.triangle_material),
+            instance_scales: &scales[m],
+            existing_uvs,
+            ..uvunwrap::MeshInput::new(&positions[m], &indices[m])
+        });
+    }
+    let options = uvunwrap::Options {
+        density: uvunwrap::Density::Fixed {
+            texels_per_unit: density,
+            page_size: None,
+        },
+        padding: config.padding,
+        ..uvunwrap::Options::default()
+    };
+    let out = uvunwrap::generate(&inputs, &options).map_err(|e| Error::Unwrap(e.to_string()))?;
+
+    let mut instances = vec![
+        InstanceRect {
+            page: 0,
+            min: [0.0; 2],
+            max: [0.0; 2]
+        };
+        scene.instances.len()
+    ];
+    let mut meshes = Vec::with_capacity(out.meshes.len());
+    for (m, om) in out.meshes.iter().enumerate() {
+        for (k, &inst) in mesh_instances[m].iter().enumerate() {
+            let r = om.instances[k];
+            instances[inst] = InstanceRect {
+                page: r.page,
+                min: r.min,
+                max: r.max,
+            };
+        }
+        meshes.push(MeshUnwrap {
+            xref: om.vertices.iter().map(|v| v.xref).collect(),
+            uv: om.vertices.iter().map(|v| Vec2::from(v.uv)).collect(),
+            chart: om.vertices.iter().map(|v| v.chart.unwrap_or(u32::MAX)).collect(),
+            triangles: om.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        });
+    }
+    Ok(Atlas {
+        width: out.width,
+        height: out.height,
+        page_count: out.page_count,
+        texels_per_meter: out.texels_per_unit,
+        chart_count: out.chart_count,
+        utilization: out.utilization,
+        meshes,
+        instances,
+        warnings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Instance, Material, Mesh};
+    use glam::{Mat4, Vec3};
+
+    fn cube_mesh() -> Mesh {
+        // 6 faces × 2 triangles, split per face (flat normals).
+        let mut m = Mesh {
+            name: "cube".into(),
+            ..Default::default()
+        };
+        for axis in 0..3 {
+            for sign in [-1.0f32, 1.0] {
+                let n = Vec3::from_array(std::array::from_fn(|i| if i == axis { sign } else { 0.0 }));
+                let (t, b) = crate::sampling::frame(n);
+                let base = m.positions.len() as u32;
+                for (u, v) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                    m.positions.push(n + t * u + b * v);
+                    m.normals.push(n);
+                    m.uv0.push(Vec2::ZERO);
+                }
+                m.triangles.push([base, base + 1, base + 2]);
+                m.triangles.push([base, base + 2, base + 3]);
+                m.triangle_material.extend([0, 0]);
+            }
+        }
+        m
+    }
+
+    /// Every instance's UVs stay inside its own rectangle, and rectangles
+    /// (hence charts of different instances) do not overlap.
+    #[test]
+    fn instances_get_disjoint_rects() {
+        let scene = Scene {
+            meshes: vec![cube_mesh()],
+            instances: (0..3)
+                .map(|i| Instance {
+                    node: format!("n{i}"),
+                    node_index: i,
+                    mesh: 0,
+                    world_from_local: Mat4::from_translation(Vec3::X * 3.0 * i as f32),
+                })
+                .collect(),
+            materials: vec![Material::fallback()],
+            ..Default::default()
+        };
+        let config = BakeConfig {
+            texels_per_meter: 8.0,
+            ..BakeConfig::default()
+        };
+        let atlas = unwrap(&scene, &config).unwrap();
+        let mu = &atlas.meshes[0];
+        assert!(mu.uv.iter().all(|uv| (0.0..=1.0).contains(&uv.x) && (0.0..=1.0).contains(&uv.y)));
+        for (a, ra) in atlas.instances.iter().enumerate() {
+            assert!(ra.max[0] > ra.min[0] && ra.max[1] > ra.min[1]);
+            for rb in atlas.instances.iter().skip(a + 1) {
+                let disjoint = ra.max[0] <= rb.min[0]
+                    || rb.max[0] <= ra.min[0]
+                    || ra.max[1] <= rb.min[1]
+                    || rb.max[1] <= ra.min[1]
+                    || ra.page != rb.page;
+                assert!(disjoint, "{ra:?} overlaps {rb:?}");
+            }
+        }
+        // Each cube face is 2×2 m at 8 texels/m: about 16 texels across.
+        let r = atlas.instances[0];
+        let w = (r.max[0] - r.min[0]) * atlas.width as f32;
+        assert!(w >= 16.0, "instance rect only {w} texels wide");
+    }
+}

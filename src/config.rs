@@ -1,0 +1,155 @@
+//! Bake settings: one serde struct, read from `bake.toml` or built from CLI
+//! flags, validated before any work starts.
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// Where the lightmap UVs come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum UvSource {
+    /// Unwrap every mesh with `uvunwrap`.
+    Unwrap,
+    /// Repack the input's `TEXCOORD_1` islands (scaled to the texel density).
+    Existing,
+}
+
+/// How form factors are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum FormFactorMethod {
+    /// Cosine-distributed rays from each patch (Wallace et al. 1989 style Monte Carlo).
+    Raycast,
+}
+
+/// How the radiosity system is solved.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Solver {
+    /// Jacobi iteration on the stored sparse F.
+    Jacobi,
+}
+
+/// All bake settings. Every field has a default; `bake.toml` may set any
+/// subset (unknown keys are rejected).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BakeConfig {
+    /// Lightmap texels per metre (> 0). Higher is sharper and slower (cost ∝ density²).
+    pub texels_per_meter: f32,
+    /// Empty texels around each chart (≥ 4, so bilinear filtering and dilation never bleed).
+    pub padding: u32,
+    /// Patch size: patches are k×k texel blocks inside one chart (1..=64). Smaller is more accurate, cost ∝ 1/k⁴.
+    pub patch_texels: u32,
+    /// Form-factor rays cast from each patch (≥ 16). Noise in F falls as 1/√rays.
+    pub rays_per_patch: u32,
+    /// Jacobi stops when the relative change of radiance falls below this (> 0).
+    pub tolerance: f32,
+    /// Jacobi stops after this many iterations at most (≥ 1).
+    pub max_iterations: u32,
+    /// Lightmap UV source.
+    pub uv: UvSource,
+    /// Form-factor method.
+    pub form_factors: FormFactorMethod,
+    /// Solver.
+    pub solver: Solver,
+    /// Seed of every random sequence (bakes are deterministic for a seed).
+    pub seed: u64,
+    /// Largest lightmap texel count; above it the texel density is lowered (with a warning).
+    pub max_texels: u64,
+}
+
+impl Default for BakeConfig {
+    fn default() -> Self {
+        Self::medium()
+    }
+}
+
+impl BakeConfig {
+    /// Balanced defaults: the Cornell box gets about 64×64 texels per wall.
+    pub const fn medium() -> Self {
+        BakeConfig {
+            texels_per_meter: 116.0,
+            padding: 4,
+            patch_texels: 4,
+            rays_per_patch: 1024,
+            tolerance: 1e-4,
+            max_iterations: 200,
+            uv: UvSource::Unwrap,
+            form_factors: FormFactorMethod::Raycast,
+            solver: Solver::Jacobi,
+            seed: 0x5eed,
+            max_texels: 16 << 20,
+        }
+    }
+
+    /// Checks every value's range.
+    ///
+    /// # Errors
+    /// [`Error::Config`] naming the first key out of range.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |key: &str, message: &str| {
+            Err(Error::Config {
+                key: key.into(),
+                message: message.into(),
+            })
+        };
+        if !(self.texels_per_meter.is_finite() && self.texels_per_meter > 0.0) {
+            return bad("texels_per_meter", "must be a finite number > 0");
+        }
+        if self.padding < 1 || self.padding > 64 {
+            return bad("padding", "must be in 1..=64");
+        }
+        if self.patch_texels < 1 || self.patch_texels > 64 {
+            return bad("patch_texels", "must be in 1..=64");
+        }
+        if self.rays_per_patch < 16 || self.rays_per_patch > 1 << 20 {
+            return bad("rays_per_patch", "must be in 16..=1048576");
+        }
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return bad("tolerance", "must be a finite number > 0");
+        }
+        if self.max_iterations < 1 {
+            return bad("max_iterations", "must be ≥ 1");
+        }
+        if self.max_texels < 1024 {
+            return bad("max_texels", "must be ≥ 1024");
+        }
+        Ok(())
+    }
+
+    /// Parses a `bake.toml`.
+    ///
+    /// # Errors
+    /// [`Error::Config`] naming an unknown key or a bad value.
+    pub fn from_toml(text: &str) -> Result<Self> {
+        let cfg: BakeConfig = toml::from_str(text).map_err(|e| Error::Config {
+            key: "bake.toml".into(),
+            message: e.message().to_owned(),
+        })?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid() {
+        BakeConfig::default().validate().unwrap();
+    }
+
+    #[test]
+    fn unknown_key_is_named() {
+        let err = BakeConfig::from_toml("texels_per_metre = 3").unwrap_err();
+        assert!(err.to_string().contains("texels_per_metre"), "{err}");
+    }
+
+    #[test]
+    fn bad_range_is_named() {
+        let err = BakeConfig::from_toml("patch_texels = 0").unwrap_err();
+        assert!(err.to_string().contains("patch_texels"), "{err}");
+    }
+}

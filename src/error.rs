@@ -1,0 +1,86 @@
+//! Typed errors for every stage. Each variant carries where the problem is
+//! (file, glTF path such as `meshes[3].primitives[0].indices`, config key), so
+//! the binary can print one line that names it.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong in a bake.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The glTF could not be parsed, or is not valid glTF.
+    #[error("{path}: not a valid glTF file: {message}")]
+    Parse {
+        /// The scene file.
+        path: PathBuf,
+        /// What the parser said.
+        message: String,
+    },
+    /// The glTF parsed, but some part of it is unusable (bad indices,
+    /// non-finite values, references leaving the scene's folder...).
+    #[error("{path}: {location}: {message}")]
+    Invalid {
+        /// The scene file.
+        path: PathBuf,
+        /// The glTF path of the offending element, e.g. `meshes[0].primitives[1].indices`.
+        location: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// The scene has nothing to bake.
+    #[error("{path}: {message}")]
+    Empty {
+        /// The scene file.
+        path: PathBuf,
+        /// Why nothing can be baked.
+        message: String,
+    },
+    /// A configuration value is out of range or unknown.
+    #[error("config key `{key}`: {message}")]
+    Config {
+        /// The key, as written in `bake.toml` and on the command line.
+        key: String,
+        /// What is wrong with its value.
+        message: String,
+    },
+    /// The UV unwrapper failed.
+    #[error("lightmap unwrap failed: {0}")]
+    Unwrap(String),
+    /// A resource limit (memory, texels) would be exceeded.
+    #[error("limit exceeded: {0}")]
+    Limit(String),
+    /// An output could not be encoded.
+    #[error("{path}: could not encode output: {message}")]
+    Encode {
+        /// The output file.
+        path: PathBuf,
+        /// The encoder's message.
+        message: String,
+    },
+}
+
+impl Error {
+    /// True when the error is the input's fault (bad scene or config) rather
+    /// than the machine's (I/O) or ours; the CLI maps this to exit code 1.
+    pub fn is_input_error(&self) -> bool {
+        matches!(
+            self,
+            Error::Parse { .. }
+                | Error::Invalid { .. }
+                | Error::Empty { .. }
+                | Error::Config { .. }
+                | Error::Limit(_)
+        )
+    }
+}
+
+/// Result with the crate's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;

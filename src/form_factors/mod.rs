@@ -1,0 +1,69 @@
+//! Stage 5 — form factors Fᵢⱼ: the fraction of the energy leaving patch i
+//! (diffusely) that arrives at patch j (Goral et al. 1984):
+//!
+//! Fᵢⱼ = 1/Aᵢ ∫_Aᵢ ∫_Aⱼ cos θᵢ cos θⱼ / (π r²) V(x, y) dAⱼ dAᵢ
+//!
+//! Stored as a sparse CSR matrix (`nalgebra-sparse`); row i sums to the
+//! fraction of i's hemisphere covered by other (front-facing) patches, 1 in a
+//! closed room. `analytic` holds Howell's closed forms used by the tests.
+
+pub mod analytic;
+pub mod raycast;
+
+use nalgebra_sparse::CsrMatrix;
+
+/// Counters of a form-factor computation.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct FormFactorStats {
+    /// Rays cast.
+    pub rays: u64,
+    /// Rays that left the scene.
+    pub escaped: u64,
+    /// Rays that hit the back of a one-sided surface (energy into a wall).
+    pub back_faces: u64,
+    /// Rays that hit a surface with no lightmap texel there.
+    pub unmapped: u64,
+}
+
+/// The form-factor matrix F (rows: shooting patch i, columns: receiving patch j).
+#[derive(Clone, Debug)]
+pub struct FormFactors {
+    /// F in CSR form, f32 values.
+    pub matrix: CsrMatrix<f32>,
+    /// Counters.
+    pub stats: FormFactorStats,
+}
+
+impl FormFactors {
+    /// Builds F from sorted per-row `(column, value)` lists.
+    pub fn from_rows(n: usize, rows: Vec<Vec<(u32, f32)>>, stats: FormFactorStats) -> FormFactors {
+        let mut offsets = Vec::with_capacity(n + 1);
+        offsets.push(0usize);
+        let nnz: usize = rows.iter().map(Vec::len).sum();
+        let mut cols = Vec::with_capacity(nnz);
+        let mut vals = Vec::with_capacity(nnz);
+        for row in rows {
+            for (j, f) in row {
+                cols.push(j as usize);
+                vals.push(f);
+            }
+            offsets.push(cols.len());
+        }
+        let matrix = CsrMatrix::try_from_csr_data(n, n, offsets, cols, vals)
+            .expect("rows are built sorted and in range");
+        FormFactors { matrix, stats }
+    }
+
+    /// Σⱼ Fᵢⱼ for every row.
+    pub fn row_sums(&self) -> Vec<f32> {
+        self.matrix
+            .row_iter()
+            .map(|r| r.values().iter().sum())
+            .collect()
+    }
+
+    /// Non-zeros of F.
+    pub fn nnz(&self) -> usize {
+        self.matrix.nnz()
+    }
+}

@@ -1,0 +1,163 @@
+//! Form factors by Monte Carlo ray casting (in the spirit of Wallace, Elmquist
+//! & Haines 1989, but shooting from the patch): N rays leave uniformly
+//! distributed points of patch i in cosine-weighted directions, so each ray
+//! carries 1/N of i's diffuse emission and Fᵢⱼ ≈ (rays whose closest hit is
+//! the front of patch j) / N. Directions are stratified over a √N × √N grid.
+
+use super::{FormFactorStats, FormFactors};
+use crate::geometry::Geometry;
+use crate::patches::Patches;
+use crate::raycast::{Hit, RayCaster};
+use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
+use crate::scene::Scene;
+use crate::texels::{barycentric, Texels};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+/// Stream purpose id of form-factor rays.
+const PURPOSE: u64 = 1;
+
+/// Everything a patch-to-patch query needs.
+pub struct Surfaces<'a> {
+    /// The scene (materials).
+    pub scene: &'a Scene,
+    /// World triangles.
+    pub geometry: &'a Geometry,
+    /// Lightmap texels.
+    pub texels: &'a Texels,
+    /// Patches.
+    pub patches: &'a Patches,
+    /// Ray caster.
+    pub rays: &'a RayCaster,
+}
+
+/// What a ray found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Landing {
+    /// The front (or a double-sided back) of this texel.
+    Texel(u32),
+    /// The back of a one-sided surface.
+    BackFace,
+    /// A surface that has no lightmap texel at that point.
+    Unmapped,
+    /// Nothing: the ray left the scene.
+    Escaped,
+}
+
+impl Surfaces<'_> {
+    /// A uniformly distributed point on patch `i` (by area), with the
+    /// geometric normal there: a texel picked by area from `u.x`, then a
+    /// point in its square from `jitter`, kept if it lies on the texel's
+    /// main triangle (else the texel's centroid).
+    pub fn sample_patch(&self, i: usize, u: f32, jitter: Vec2) -> (Vec3, Vec3) {
+        let texels = self.patches.texels_of(i);
+        let total = self.patches.area[i];
+        let mut target = u * total;
+        let mut pick = texels[texels.len() - 1];
+        for &t in texels {
+            target -= self.texels.area[t as usize];
+            if target <= 0.0 {
+                pick = t;
+                break;
+            }
+        }
+        self.sample_texel(pick, jitter)
+    }
+
+    /// A point of texel `t` (see [`Surfaces::sample_patch`]) and its normal.
+    pub fn sample_texel(&self, t: u32, jitter: Vec2) -> (Vec3, Vec3) {
+        let t = t as usize;
+        let tri = self.texels.triangle[t];
+        let [x, y] = self.texels.xy[t];
+        let q = Vec2::new(x as f32, y as f32) + jitter;
+        let w = barycentric(&self.geometry.uv_lm[tri as usize], q);
+        if w.min_element() >= 0.0 {
+            (self.geometry.point(tri, w.y, w.z), self.geometry.ng_ws[tri as usize])
+        } else {
+            (self.texels.p_ws[t], self.texels.n_ws[t])
+        }
+    }
+
+    /// Where a ray from `origin` along `dir` lands.
+    pub fn trace(&self, origin: Vec3, dir: Vec3) -> (Landing, Option<Hit>) {
+        let Some(hit) = self.rays.closest_hit(origin, dir, f32::INFINITY) else {
+            return (Landing::Escaped, None);
+        };
+        let g = self.geometry;
+        let tri = hit.tri as usize;
+        let front = g.ng_ws[tri].dot(dir) < 0.0;
+        if !front && !self.scene.materials[g.material[tri] as usize].double_sided {
+            return (Landing::BackFace, Some(hit));
+        }
+        let uv_lm = g.uv_lm_at(hit.tri, hit.u, hit.v);
+        match self.texels.lookup(g.page[tri], uv_lm, g.instance[tri], g.chart[tri]) {
+            Some(t) => (Landing::Texel(t), Some(hit)),
+            None => (Landing::Unmapped, Some(hit)),
+        }
+    }
+}
+
+/// Computes every row of F by casting `rays_per_patch` rays from each patch.
+/// `advance` is called with the number of patches done.
+pub fn compute(
+    s: &Surfaces,
+    rays_per_patch: u32,
+    seed: u64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> FormFactors {
+    let n = s.patches.len();
+    let results: Vec<(Vec<(u32, f32)>, FormFactorStats)> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let r = row(s, i, rays_per_patch, seed);
+            advance(1);
+            r
+        })
+        .collect();
+    let mut stats = FormFactorStats::default();
+    let mut rows = Vec::with_capacity(n);
+    for (r, st) in results {
+        stats.rays += st.rays;
+        stats.escaped += st.escaped;
+        stats.back_faces += st.back_faces;
+        stats.unmapped += st.unmapped;
+        rows.push(r);
+    }
+    FormFactors::from_rows(n, rows, stats)
+}
+
+/// Row i of F, sorted by column.
+pub fn row(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> (Vec<(u32, f32)>, FormFactorStats) {
+    let mut rng = Stream::new(seed, PURPOSE, i as u64);
+    let mut stats = FormFactorStats {
+        rays: n_rays as u64,
+        ..Default::default()
+    };
+    let mut hits: Vec<u32> = Vec::with_capacity(n_rays as usize);
+    // A random pairing of direction strata with area strata (Fisher–Yates).
+    let mut area_strata: Vec<u32> = (0..n_rays).collect();
+    for k in (1..n_rays as usize).rev() {
+        area_strata.swap(k, rng.below(k as u32 + 1) as usize);
+    }
+    for k in 0..n_rays {
+        let area_u = area_strata[k as usize] as f32 + rng.next_f32();
+        let (p, ng) = s.sample_patch(i, area_u / n_rays as f32, rng.next_vec2());
+        let dir = to_world(cosine_hemisphere(stratified(k, n_rays, rng.next_vec2())), ng);
+        match s.trace(offset_ray_origin(p, ng), dir).0 {
+            Landing::Texel(t) => hits.push(s.patches.of_texel[t as usize].0),
+            Landing::BackFace => stats.back_faces += 1,
+            Landing::Unmapped => stats.unmapped += 1,
+            Landing::Escaped => stats.escaped += 1,
+        }
+    }
+    hits.sort_unstable();
+    let w = 1.0 / n_rays as f32;
+    let mut out: Vec<(u32, f32)> = Vec::new();
+    for j in hits {
+        match out.last_mut() {
+            Some((c, f)) if *c == j => *f += w,
+            _ => out.push((j, w)),
+        }
+    }
+    (out, stats)
+}

@@ -1,0 +1,120 @@
+//! World-space triangles: every instance's triangles flattened through its
+//! transform, with their lightmap coordinates from the atlas. Shared by the
+//! texel rasteriser, the ray caster and every stage that turns a ray hit into
+//! a lightmap texel.
+
+use crate::atlas::Atlas;
+use crate::scene::Scene;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+/// Flattened world-space triangles (struct of arrays, indexed by a global
+/// triangle id).
+#[derive(Clone, Debug, Default)]
+pub struct Geometry {
+    /// Instance of each triangle.
+    pub instance: Vec<u32>,
+    /// Corner positions (world), counter-clockwise from the front.
+    pub p_ws: Vec<[Vec3; 3]>,
+    /// Corner shading normals (world, unit).
+    pub n_ws: Vec<[Vec3; 3]>,
+    /// Unit geometric normal (front side).
+    pub ng_ws: Vec<Vec3>,
+    /// World area (m²).
+    pub area: Vec<f32>,
+    /// Corner `TEXCOORD_0`.
+    pub uv0: Vec<[Vec2; 3]>,
+    /// Corner lightmap coordinates in atlas texels (not normalised).
+    pub uv_lm: Vec<[Vec2; 3]>,
+    /// Atlas page.
+    pub page: Vec<u32>,
+    /// Chart (unique per mesh; combine with `instance` for a global chart).
+    pub chart: Vec<u32>,
+    /// Material.
+    pub material: Vec<u32>,
+}
+
+impl Geometry {
+    /// Flattens `scene` with the lightmap coordinates of `atlas`.
+    pub fn new(scene: &Scene, atlas: &Atlas) -> Geometry {
+        let per_instance: Vec<Geometry> = scene
+            .instances
+            .par_iter()
+            .enumerate()
+            .map(|(i, inst)| {
+                let mesh = &scene.meshes[inst.mesh as usize];
+                let unwrap = &atlas.meshes[inst.mesh as usize];
+                let rect = atlas.instances[i];
+                let m = inst.world_from_local;
+                let nm = inst.normal_matrix();
+                let flip = inst.mirrors();
+                let mut g = Geometry::default();
+                for (t, out_tri) in unwrap.triangles.iter().enumerate() {
+                    let mut order = [0usize, 1, 2];
+                    if flip {
+                        order.swap(1, 2);
+                    }
+                    let src = mesh.triangles[t];
+                    let p = order.map(|k| m.transform_point3(mesh.positions[src[k] as usize]));
+                    let n = order.map(|k| (nm * mesh.normals[src[k] as usize]).normalize_or(Vec3::Y));
+                    let uv0 = order.map(|k| mesh.uv0[src[k] as usize]);
+                    let lm = order.map(|k| rect.to_texels(unwrap.uv[out_tri[k] as usize], atlas.width, atlas.height));
+                    let cross = (p[1] - p[0]).cross(p[2] - p[0]);
+                    g.instance.push(i as u32);
+                    g.p_ws.push(p);
+                    g.n_ws.push(n);
+                    g.ng_ws.push(cross.normalize_or(n[0]));
+                    g.area.push(0.5 * cross.length());
+                    g.uv0.push(uv0);
+                    g.uv_lm.push(lm);
+                    g.page.push(rect.page);
+                    g.chart.push(unwrap.chart[out_tri[0] as usize]);
+                    g.material.push(mesh.triangle_material[t]);
+                }
+                g
+            })
+            .collect();
+        let mut all = Geometry::default();
+        for g in per_instance {
+            all.instance.extend(g.instance);
+            all.p_ws.extend(g.p_ws);
+            all.n_ws.extend(g.n_ws);
+            all.ng_ws.extend(g.ng_ws);
+            all.area.extend(g.area);
+            all.uv0.extend(g.uv0);
+            all.uv_lm.extend(g.uv_lm);
+            all.page.extend(g.page);
+            all.chart.extend(g.chart);
+            all.material.extend(g.material);
+        }
+        all
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.instance.len()
+    }
+
+    /// True when there are no triangles.
+    pub fn is_empty(&self) -> bool {
+        self.instance.is_empty()
+    }
+
+    /// Barycentric interpolation helpers: weights (1−u−v, u, v).
+    pub fn point(&self, tri: u32, u: f32, v: f32) -> Vec3 {
+        let p = &self.p_ws[tri as usize];
+        p[0] * (1.0 - u - v) + p[1] * u + p[2] * v
+    }
+
+    /// `TEXCOORD_0` at barycentrics (u, v).
+    pub fn uv0_at(&self, tri: u32, u: f32, v: f32) -> Vec2 {
+        let t = &self.uv0[tri as usize];
+        t[0] * (1.0 - u - v) + t[1] * u + t[2] * v
+    }
+
+    /// Lightmap texel coordinate at barycentrics (u, v).
+    pub fn uv_lm_at(&self, tri: u32, u: f32, v: f32) -> Vec2 {
+        let t = &self.uv_lm[tri as usize];
+        t[0] * (1.0 - u - v) + t[1] * u + t[2] * v
+    }
+}

@@ -1,0 +1,288 @@
+//! # radbake — a radiosity lightmap baker for glTF 2.0 scenes
+//!
+//! The bake is a pipeline of plain data, one module per stage:
+//!
+//! ```text
+//! Scene ─► Atlas ─► Geometry ─► Texels ─► Patches ─► FormFactors ─► Solution ─► Lightmaps ─► files
+//! scene    atlas    geometry    texels    patches    form_factors   solve        lightmap     output
+//! ```
+//!
+//! It solves the discrete radiosity equation (Goral, Torrance, Greenberg &
+//! Battaile 1984) for Lambertian surfaces, in radiance form:
+//! Lᵢ = Eᵢ + ρᵢ Σⱼ Fᵢⱼ Lⱼ.
+//!
+//! **Units and the lightmap convention.** glTF emissive (`emissiveFactor` ×
+//! `KHR_materials_emissive_strength`) is emitted radiance. A lightmap texel
+//! holds *incident irradiance / π* (linear RGB), so a Lambertian surface's
+//! outgoing radiance is `albedo × lightmap + emission`.
+//!
+//! ```no_run
+//! let scene = radbake::scene::load("scene.gltf".as_ref(), &Default::default())?;
+//! let bake = radbake::bake(&scene, &radbake::BakeConfig::default(), &radbake::Silent)?;
+//! radbake::output::write_lightmaps("out".as_ref(), &bake.lightmaps)?;
+//! radbake::output::write_report("out".as_ref(), &bake.report("scene.gltf"))?;
+//! # Ok::<(), radbake::Error>(())
+//! ```
+
+pub mod atlas;
+pub mod config;
+pub mod error;
+pub mod form_factors;
+pub mod geometry;
+pub mod lightmap;
+pub mod output;
+pub mod patches;
+pub mod progress;
+pub mod raycast;
+pub mod report;
+pub mod sampling;
+pub mod scene;
+pub mod solve;
+pub mod texels;
+
+pub use config::BakeConfig;
+pub use error::{Error, Result};
+pub use progress::{Progress, Silent};
+
+use atlas::Atlas;
+use form_factors::{raycast::Surfaces, FormFactors};
+use geometry::Geometry;
+use glam::Vec3;
+use lightmap::Lightmaps;
+use patches::Patches;
+use report::{Counts, Energy, InstanceReport, Report, StageTime};
+use scene::Scene;
+use solve::Solution;
+use std::time::Instant;
+use texels::Texels;
+
+/// Everything a bake produced, stage by stage.
+pub struct Bake<'s> {
+    /// The input scene.
+    pub scene: &'s Scene,
+    /// Effective settings.
+    pub config: BakeConfig,
+    /// Lightmap atlas.
+    pub atlas: Atlas,
+    /// World triangles.
+    pub geometry: Geometry,
+    /// Lightmap texels.
+    pub texels: Texels,
+    /// Patches.
+    pub patches: Patches,
+    /// Form factors.
+    pub form_factors: FormFactors,
+    /// Radiosity solution.
+    pub solution: Solution,
+    /// Lightmap pages.
+    pub lightmaps: Lightmaps,
+    /// Wall time per stage.
+    pub stages: Vec<StageTime>,
+    /// Non-fatal problems.
+    pub warnings: Vec<String>,
+}
+
+struct Timer<'a> {
+    stages: Vec<StageTime>,
+    start: Instant,
+    progress: &'a dyn Progress,
+}
+
+impl<'a> Timer<'a> {
+    fn begin(&mut self, stage: &str, total: u64) {
+        self.start = Instant::now();
+        self.progress.begin(stage, total);
+    }
+    fn end(&mut self, stage: &str) {
+        self.progress.end();
+        self.stages.push(StageTime {
+            stage: stage.into(),
+            seconds: self.start.elapsed().as_secs_f64(),
+        });
+    }
+}
+
+/// Bakes `scene` with `config`, reporting to `progress`.
+///
+/// # Errors
+/// [`Error::Config`] for settings out of range, [`Error::Unwrap`] when the
+/// atlas can't be built.
+pub fn bake<'s>(scene: &'s Scene, config: &BakeConfig, progress: &dyn Progress) -> Result<Bake<'s>> {
+    config.validate()?;
+    let mut warnings = scene.warnings.clone();
+    if !scene.has_emitters() {
+        warnings.push("the scene has no emissive surface and no light: the lightmaps are black".into());
+    }
+    let mut timer = Timer {
+        stages: Vec::new(),
+        start: Instant::now(),
+        progress,
+    };
+
+    timer.begin("unwrap", 0);
+    let atlas = atlas::unwrap(scene, config)?;
+    warnings.extend(atlas.warnings.iter().cloned());
+    timer.end("unwrap");
+
+    timer.begin("texels", 0);
+    let geometry = Geometry::new(scene, &atlas);
+    let texels = texels::rasterize(scene, &atlas, &geometry);
+    timer.end("texels");
+
+    timer.begin("patches", 0);
+    let patches = patches::build(&texels, config.patch_texels);
+    timer.end("patches");
+
+    timer.begin("bvh", 0);
+    let rays = raycast::RayCaster::new(scene, &geometry);
+    timer.end("bvh");
+
+    let surfaces = Surfaces {
+        scene,
+        geometry: &geometry,
+        texels: &texels,
+        patches: &patches,
+        rays: &rays,
+    };
+    timer.begin("form_factors", patches.len() as u64);
+    let advance = |n| progress.advance(n);
+    let form_factors = form_factors::raycast::compute(&surfaces, config.rays_per_patch, config.seed, &advance);
+    timer.end("form_factors");
+
+    timer.begin("solve", config.max_iterations as u64);
+    let direct = vec![Vec3::ZERO; patches.len()];
+    let solution = solve::jacobi::solve(
+        &form_factors.matrix,
+        &patches.emission,
+        &patches.albedo,
+        &direct,
+        config.tolerance,
+        config.max_iterations,
+        &|n| progress.advance(n),
+    );
+    if solution.residual >= config.tolerance {
+        warnings.push(format!(
+            "the solver stopped at max_iterations = {} with residual {:.2e} above tolerance {:.2e}",
+            config.max_iterations, solution.residual, config.tolerance
+        ));
+    }
+    timer.end("solve");
+
+    timer.begin("lightmaps", 0);
+    let lightmaps = lightmap::build(&texels, &patches, &solution, atlas.page_count, 2 * config.padding);
+    timer.end("lightmaps");
+
+    Ok(Bake {
+        scene,
+        config: config.clone(),
+        atlas,
+        geometry,
+        texels,
+        patches,
+        form_factors,
+        solution,
+        lightmaps,
+        stages: timer.stages,
+        warnings,
+    })
+}
+
+impl Bake<'_> {
+    /// Per-instance area-weighted means of the texel values.
+    pub fn instance_reports(&self) -> Vec<InstanceReport> {
+        let n = self.scene.instances.len();
+        let mut area = vec![0.0f64; n];
+        let mut sum = vec![[0.0f64; 3]; n];
+        let mut count = vec![0u64; n];
+        for t in 0..self.texels.len() {
+            let i = self.texels.instance[t] as usize;
+            let a = self.texels.area[t] as f64;
+            let v = self.lightmaps.texel_values[t];
+            area[i] += a;
+            count[i] += 1;
+            for c in 0..3 {
+                sum[i][c] += a * v[c] as f64;
+            }
+        }
+        self.scene
+            .instances
+            .iter()
+            .enumerate()
+            .map(|(i, inst)| {
+                let r = self.atlas.instances[i];
+                InstanceReport {
+                    node: inst.node.clone(),
+                    mesh: self.scene.meshes[inst.mesh as usize].name.clone(),
+                    area: area[i],
+                    texels: count[i],
+                    mean: std::array::from_fn(|c| if area[i] > 0.0 { (sum[i][c] / area[i]) as f32 } else { 0.0 }),
+                    page: r.page,
+                    uv_rect: [r.min[0], r.min[1], r.max[0], r.max[1]],
+                }
+            })
+            .collect()
+    }
+
+    /// The power balance of the solution.
+    pub fn energy(&self) -> Energy {
+        let p = &self.patches;
+        let s = &self.solution;
+        let rows = self.form_factors.row_sums();
+        let pi = std::f64::consts::PI;
+        let mut e = Energy::default();
+        for i in 0..p.len() {
+            let a = p.area[i] as f64;
+            for c in 0..3 {
+                e.emitted[c] += pi * a * p.emission[i][c] as f64;
+                e.absorbed[c] += pi * a * (1.0 - p.albedo[i][c] as f64) * s.irradiance[i][c] as f64;
+                e.escaped[c] += pi * a * s.radiance[i][c] as f64 * (1.0 - rows[i] as f64);
+            }
+        }
+        for c in 0..3 {
+            e.relative_imbalance[c] = if e.emitted[c] > 0.0 {
+                (e.emitted[c] - e.absorbed[c] - e.escaped[c]) / e.emitted[c]
+            } else {
+                0.0
+            };
+        }
+        e
+    }
+
+    /// The report for this bake of `scene_path`.
+    pub fn report(&self, scene_path: &str) -> Report {
+        let st = &self.scene.stats;
+        let ff = &self.form_factors.stats;
+        Report {
+            radbake_version: env!("CARGO_PKG_VERSION").into(),
+            scene: scene_path.into(),
+            settings: self.config.clone(),
+            stages: self.stages.clone(),
+            counts: Counts {
+                triangles: self.geometry.len() as u64,
+                instances: self.scene.instances.len() as u64,
+                meshes: self.scene.meshes.len() as u64,
+                lights: self.scene.lights.len() as u64,
+                degenerate_triangles: st.degenerate_triangles,
+                skipped_primitives: st.skipped_primitives,
+                unmapped_triangles: self.texels.unmapped_triangles,
+                pages: self.atlas.page_count as u64,
+                page_size: [self.atlas.width, self.atlas.height],
+                charts: self.atlas.chart_count as u64,
+                utilization: self.atlas.utilization,
+                texels_per_meter: self.atlas.texels_per_meter,
+                texels: self.texels.len() as u64,
+                patches: self.patches.len() as u64,
+                nonzeros: self.form_factors.nnz() as u64,
+                rays: ff.rays,
+                rays_escaped: ff.escaped,
+                rays_back_faces: ff.back_faces,
+                rays_unmapped: ff.unmapped,
+                iterations: self.solution.iterations as u64,
+                residual: self.solution.residual,
+            },
+            energy: self.energy(),
+            instances: self.instance_reports(),
+            warnings: self.warnings.clone(),
+        }
+    }
+}

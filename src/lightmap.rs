@@ -1,0 +1,145 @@
+//! Stage 7 — lightmap pages from the patch solution. Each texel's value is
+//! H = incident irradiance / π, bilinearly interpolated between the centres
+//! of the four nearest patch blocks of the same chart (missing blocks drop
+//! out and the weights are renormalised), so patches do not show as blocks.
+//! Empty texels around charts are then filled by dilation, ring by ring, so
+//! bilinear filtering and mipmaps never fetch black.
+
+use crate::patches::Patches;
+use crate::solve::Solution;
+use crate::texels::Texels;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+/// Lightmap pages of linear RGB (irradiance / π).
+#[derive(Clone, Debug, Default)]
+pub struct Lightmaps {
+    /// Page width.
+    pub width: u32,
+    /// Page height.
+    pub height: u32,
+    /// Row-major RGB values per page.
+    pub pages: Vec<Vec<Vec3>>,
+    /// Value of each covered texel (indexed by texel id), before dilation.
+    pub texel_values: Vec<Vec3>,
+}
+
+/// Interpolated value of every texel from the patch solution.
+pub fn interpolate(texels: &Texels, patches: &Patches, solution: &Solution) -> Vec<Vec3> {
+    let k = patches.block as f32;
+    (0..texels.len())
+        .into_par_iter()
+        .map(|t| {
+            let [x, y] = texels.xy[t];
+            let inst = texels.instance[t];
+            let chart = texels.chart[t];
+            let f = (Vec2::new(x as f32, y as f32) + 0.5) / k - 0.5;
+            let b0 = f.floor();
+            let w = f - b0;
+            let (mut acc, mut wsum) = (Vec3::ZERO, 0.0f32);
+            for (dx, dy, wt) in [
+                (0, 0, (1.0 - w.x) * (1.0 - w.y)),
+                (1, 0, w.x * (1.0 - w.y)),
+                (0, 1, (1.0 - w.x) * w.y),
+                (1, 1, w.x * w.y),
+            ] {
+                let bx = b0.x as i64 + dx;
+                let by = b0.y as i64 + dy;
+                if bx < 0 || by < 0 || wt <= 0.0 {
+                    continue;
+                }
+                if let Some(p) = patches.by_key.get(&(inst, chart, bx as u32, by as u32)) {
+                    acc += solution.irradiance[p.0 as usize] * wt;
+                    wsum += wt;
+                }
+            }
+            if wsum > 0.0 {
+                acc / wsum
+            } else {
+                solution.irradiance[patches.of_texel[t].0 as usize]
+            }
+        })
+        .collect()
+}
+
+/// Fills `rings` rings of empty texels around covered ones with the mean of
+/// their covered (or already filled) 8-neighbours.
+pub fn dilate(values: &mut [Vec3], filled: &mut [bool], width: u32, height: u32, rings: u32) {
+    let (w, h) = (width as i64, height as i64);
+    for _ in 0..rings {
+        let mut updates: Vec<(usize, Vec3)> = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                if filled[i] {
+                    continue;
+                }
+                let (mut acc, mut n) = (Vec3::ZERO, 0);
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let (nx, ny) = (x + dx, y + dy);
+                        if nx >= 0 && ny >= 0 && nx < w && ny < h && filled[(ny * w + nx) as usize] {
+                            acc += values[(ny * w + nx) as usize];
+                            n += 1;
+                        }
+                    }
+                }
+                if n > 0 {
+                    updates.push((i, acc / n as f32));
+                }
+            }
+        }
+        if updates.is_empty() {
+            break;
+        }
+        for (i, v) in updates {
+            values[i] = v;
+            filled[i] = true;
+        }
+    }
+}
+
+/// Builds the pages: interpolated texel values, then `dilate_rings` of dilation.
+pub fn build(texels: &Texels, patches: &Patches, solution: &Solution, page_count: u32, dilate_rings: u32) -> Lightmaps {
+    let texel_values = interpolate(texels, patches, solution);
+    let (w, h) = (texels.width, texels.height);
+    let pages = (0..page_count.max(1))
+        .map(|p| {
+            let mut values = vec![Vec3::ZERO; (w * h) as usize];
+            let mut filled = vec![false; (w * h) as usize];
+            for (i, &t) in texels.index[p as usize].iter().enumerate() {
+                if t != crate::texels::EMPTY {
+                    values[i] = texel_values[t as usize];
+                    filled[i] = true;
+                }
+            }
+            dilate(&mut values, &mut filled, w, h, dilate_rings);
+            values
+        })
+        .collect();
+    Lightmaps {
+        width: w,
+        height: h,
+        pages,
+        texel_values,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dilation_fills_rings() {
+        let (w, h) = (5, 5);
+        let mut v = vec![Vec3::ZERO; 25];
+        let mut f = vec![false; 25];
+        v[12] = Vec3::ONE;
+        f[12] = true;
+        dilate(&mut v, &mut f, w, h, 1);
+        assert!(f[6] && f[18] && !f[0]);
+        assert_eq!(v[6], Vec3::ONE);
+        dilate(&mut v, &mut f, w, h, 1);
+        assert!(f.iter().all(|&x| x));
+    }
+}

@@ -1,0 +1,218 @@
+//! `radbake` command line: a thin layer over [`radbake::bake`].
+//!
+//! Exit codes: 0 success, 1 bad input (scene or settings), 2 usage error,
+//! 3 I/O or internal error.
+
+use anyhow::Context as _;
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use radbake::config::{FormFactorMethod, Solver, UvSource};
+use radbake::report::StageTime;
+use radbake::BakeConfig;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Mutex;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(name = "radbake", version, about = "Radiosity lightmap baker for glTF 2.0 scenes")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Bake lightmaps for a .gltf/.glb scene.
+    Bake(BakeArgs),
+}
+
+#[derive(Args)]
+struct BakeArgs {
+    /// The scene (.gltf or .glb).
+    scene: PathBuf,
+    /// Output folder (created if missing): lightmap_<page>.exr/.png, report.json.
+    #[arg(long, short)]
+    out: PathBuf,
+    /// Settings file (TOML, keys as in report.json's "settings"); flags override it.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Lightmap texels per metre [default: 116].
+    #[arg(long)]
+    texels_per_meter: Option<f32>,
+    /// Empty texels around each chart [default: 4].
+    #[arg(long)]
+    padding: Option<u32>,
+    /// Patch size k: patches are k×k texel blocks [default: 4].
+    #[arg(long)]
+    patch_texels: Option<u32>,
+    /// Form-factor rays per patch [default: 1024].
+    #[arg(long)]
+    rays_per_patch: Option<u32>,
+    /// Solver stops when the relative change of radiance is below this [default: 1e-4].
+    #[arg(long)]
+    tolerance: Option<f32>,
+    /// Solver iteration limit [default: 200].
+    #[arg(long)]
+    max_iterations: Option<u32>,
+    /// Lightmap UVs: unwrap, or repack the input's TEXCOORD_1 [default: unwrap].
+    #[arg(long, value_enum)]
+    uv: Option<UvSource>,
+    /// Form-factor method [default: raycast].
+    #[arg(long, value_enum)]
+    form_factors: Option<FormFactorMethod>,
+    /// Solver [default: jacobi].
+    #[arg(long, value_enum)]
+    solver: Option<Solver>,
+    /// Seed of all random sequences [default: 24301].
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Largest lightmap texel count; the density is lowered above it [default: 16777216].
+    #[arg(long)]
+    max_texels: Option<u64>,
+    /// Print nothing but errors.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+impl BakeArgs {
+    fn config(&self) -> anyhow::Result<BakeConfig> {
+        let mut c = match &self.config {
+            Some(path) => {
+                let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
+                BakeConfig::from_toml(&text)?
+            }
+            None => BakeConfig::default(),
+        };
+        macro_rules! set {
+            ($($f:ident),*) => { $( if let Some(v) = self.$f { c.$f = v; } )* };
+        }
+        set!(texels_per_meter, padding, patch_texels, rays_per_patch, tolerance, max_iterations, uv, form_factors, solver, seed, max_texels);
+        c.validate()?;
+        Ok(c)
+    }
+}
+
+/// indicatif bars, one per stage.
+struct Bars {
+    bar: Mutex<Option<ProgressBar>>,
+    hidden: bool,
+}
+
+impl radbake::Progress for Bars {
+    fn begin(&self, stage: &str, total: u64) {
+        let bar = if total > 0 {
+            ProgressBar::new(total).with_style(
+                ProgressStyle::with_template("{msg:>13} [{bar:30}] {pos}/{len} {elapsed} (eta {eta})")
+                    .expect("static template")
+                    .progress_chars("=> "),
+            )
+        } else {
+            ProgressBar::new_spinner().with_style(ProgressStyle::with_template("{msg:>13} {spinner} {elapsed}").expect("static template"))
+        };
+        if self.hidden {
+            bar.set_draw_target(ProgressDrawTarget::hidden());
+        } else {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+        }
+        bar.set_message(stage.to_owned());
+        *self.bar.lock().expect("progress lock") = Some(bar);
+    }
+    fn advance(&self, n: u64) {
+        if let Some(b) = self.bar.lock().expect("progress lock").as_ref() {
+            b.inc(n);
+        }
+    }
+    fn end(&self) {
+        if let Some(b) = self.bar.lock().expect("progress lock").take() {
+            b.finish();
+        }
+    }
+}
+
+fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
+    let config = args.config().map_err(|e| (classify(&e), format!("{e:#}")))?;
+    let start = Instant::now();
+    let scene = radbake::scene::load(&args.scene, &Default::default()).map_err(lib_err)?;
+    let import = StageTime {
+        stage: "import".into(),
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    let bars = Bars {
+        bar: Mutex::new(None),
+        hidden: args.quiet,
+    };
+    let bake = radbake::bake(&scene, &config, &bars).map_err(lib_err)?;
+    let mut report = bake.report(&args.scene.display().to_string());
+    report.stages.insert(0, import);
+    let t = Instant::now();
+    let mut written = radbake::output::write_lightmaps(&args.out, &bake.lightmaps).map_err(lib_err)?;
+    report.stages.push(StageTime {
+        stage: "write".into(),
+        seconds: t.elapsed().as_secs_f64(),
+    });
+    written.push(radbake::output::write_report(&args.out, &report).map_err(lib_err)?);
+    if !args.quiet {
+        for w in &report.warnings {
+            eprintln!("warning: {w}");
+        }
+        let c = &report.counts;
+        eprintln!(
+            "baked {} triangles, {} texels, {} patches, {} rays, {} iterations in {:.2} s → {} files in {}",
+            c.triangles,
+            c.texels,
+            c.patches,
+            c.rays,
+            c.iterations,
+            start.elapsed().as_secs_f64(),
+            written.len(),
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+fn lib_err(e: radbake::Error) -> (u8, String) {
+    (if e.is_input_error() { 1 } else { 3 }, e.to_string())
+}
+
+fn classify(e: &anyhow::Error) -> u8 {
+    match e.downcast_ref::<radbake::Error>() {
+        Some(le) if le.is_input_error() => 1,
+        Some(_) => 3,
+        None => 1,
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    // A panic is a bug, never the input's fault: report it in one line, exit 3.
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        let at = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
+        eprintln!("error: internal error (a bug in radbake){at}: {msg}");
+    }));
+    let result = std::panic::catch_unwind(|| match &cli.command {
+        Command::Bake(args) => run_bake(args),
+    });
+    match result {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err((code, msg))) => {
+            eprintln!("error: {msg}");
+            ExitCode::from(code)
+        }
+        Err(_) => ExitCode::from(3),
+    }
+}

@@ -1,0 +1,133 @@
+//! Stage 8 — files: lightmap pages as linear float EXR and tone-mapped PNG
+//! previews, and `report.json`. Every file is written to a temporary file in
+//! the same folder and renamed over the target, so a killed bake never
+//! leaves a half-written file where a good one was.
+
+use crate::error::{Error, Result};
+use crate::lightmap::Lightmaps;
+use crate::report::Report;
+use crate::scene::texture::linear_to_srgb;
+use std::path::{Path, PathBuf};
+
+/// Writes `path` atomically: `write` fills a temporary sibling, which is
+/// synced and renamed over `path` only if `write` succeeds.
+///
+/// # Errors
+/// [`Error::Io`] on any file-system failure; whatever `write` returns.
+pub fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
+    // Keep the extension last: some encoders pick the format from it.
+    let tmp = dir.join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
+    let io = |source| Error::Io { path: tmp.clone(), source };
+    let result = write(&tmp).and_then(|_| {
+        std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(|source| Error::Io { path: path.to_path_buf(), source })
+    });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Writes bytes atomically.
+///
+/// # Errors
+/// [`Error::Io`].
+pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_atomic(path, |tmp| {
+        std::fs::write(tmp, bytes).map_err(|source| Error::Io { path: tmp.to_path_buf(), source })
+    })
+}
+
+/// Writes one page as a linear float RGB OpenEXR file.
+///
+/// # Errors
+/// [`Error::Encode`] or [`Error::Io`].
+pub fn write_exr(path: &Path, lightmaps: &Lightmaps, page: usize) -> Result<()> {
+    let (w, h) = (lightmaps.width as usize, lightmaps.height as usize);
+    let values = &lightmaps.pages[page];
+    write_atomic(path, |tmp| {
+        exr::prelude::write_rgb_file(tmp, w, h, |x, y| {
+            let v = values[y * w + x];
+            (v.x, v.y, v.z)
+        })
+        .map_err(|e| Error::Encode { path: path.to_path_buf(), message: e.to_string() })
+    })
+}
+
+/// Writes one page as an 8-bit sRGB PNG preview, tone-mapped by Reinhard
+/// (v / (1 + v)); for looking at, not for engines.
+///
+/// # Errors
+/// [`Error::Encode`] or [`Error::Io`].
+pub fn write_preview_png(path: &Path, lightmaps: &Lightmaps, page: usize) -> Result<()> {
+    let values = &lightmaps.pages[page];
+    let img = image::RgbImage::from_fn(lightmaps.width, lightmaps.height, |x, y| {
+        let v = values[(y * lightmaps.width + x) as usize];
+        let c = |c: f32| (linear_to_srgb((c / (1.0 + c)).clamp(0.0, 1.0)) * 255.0 + 0.5) as u8;
+        image::Rgb([c(v.x), c(v.y), c(v.z)])
+    });
+    write_atomic(path, |tmp| {
+        img.save_with_format(tmp, image::ImageFormat::Png)
+            .map_err(|e| Error::Encode { path: path.to_path_buf(), message: e.to_string() })
+    })
+}
+
+/// Writes the lightmap pages into `out_dir` (created if missing) as
+/// `lightmap_<page>.exr` and `lightmap_<page>.png`; returns the paths written.
+///
+/// # Errors
+/// [`Error::Io`] / [`Error::Encode`].
+pub fn write_lightmaps(out_dir: &Path, lightmaps: &Lightmaps) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io { path: out_dir.to_path_buf(), source })?;
+    let mut written = Vec::new();
+    for page in 0..lightmaps.pages.len() {
+        let exr = out_dir.join(format!("lightmap_{page}.exr"));
+        write_exr(&exr, lightmaps, page)?;
+        written.push(exr);
+        let png = out_dir.join(format!("lightmap_{page}.png"));
+        write_preview_png(&png, lightmaps, page)?;
+        written.push(png);
+    }
+    Ok(written)
+}
+
+/// Writes `report.json` into `out_dir` (written last by the CLI, so its
+/// presence marks a finished bake).
+///
+/// # Errors
+/// [`Error::Io`] / [`Error::Encode`].
+pub fn write_report(out_dir: &Path, report: &Report) -> Result<PathBuf> {
+    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io { path: out_dir.to_path_buf(), source })?;
+    let json = out_dir.join("report.json");
+    let text = serde_json::to_vec_pretty(report).map_err(|e| Error::Encode { path: json.clone(), message: e.to_string() })?;
+    write_bytes_atomic(&json, &text)?;
+    Ok(json)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_write_keeps_the_old_file() {
+        let dir = std::env::temp_dir().join(format!("radbake-atomic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let target = dir.join("a.txt");
+        write_bytes_atomic(&target, b"good").unwrap();
+        let r = write_atomic(&target, |tmp| {
+            std::fs::write(tmp, b"half").unwrap();
+            Err(Error::Limit("interrupted".into()))
+        });
+        assert!(r.is_err());
+        assert_eq!(std::fs::read(&target).unwrap(), b"good");
+        let leftovers = std::fs::read_dir(&dir).unwrap().count();
+        assert_eq!(leftovers, 1, "temporary file left behind");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

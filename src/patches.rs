@@ -1,0 +1,157 @@
+//! Stage 4 — patches: texels grouped into k×k blocks of the atlas, never
+//! across two charts (hence never across two instances or materials, since
+//! charts never span materials). Each patch carries the area-weighted
+//! centroid, normal, albedo and emission of its texels and their total area,
+//! the quantities of the discrete radiosity equation (Goral et al. 1984).
+
+use crate::texels::Texels;
+use glam::{Vec2, Vec3};
+use std::collections::HashMap;
+
+/// A patch index.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct PatchId(pub u32);
+
+/// Key of a block: (instance, chart, block x, block y).
+pub type BlockKey = (u32, u32, u32, u32);
+
+/// The patches (struct of arrays, indexed by [`PatchId`]).
+#[derive(Clone, Debug, Default)]
+pub struct Patches {
+    /// Block size in texels (k).
+    pub block: u32,
+    /// Area-weighted centroid (world).
+    pub p_ws: Vec<Vec3>,
+    /// Area-weighted unit normal (world).
+    pub n_ws: Vec<Vec3>,
+    /// Area Aᵢ (m²).
+    pub area: Vec<f32>,
+    /// Area-weighted albedo ρᵢ.
+    pub albedo: Vec<Vec3>,
+    /// Area-weighted emitted radiance Eᵢ.
+    pub emission: Vec<Vec3>,
+    /// Block key of each patch.
+    pub key: Vec<BlockKey>,
+    /// Texels of patch i: `texels[texel_start[i]..texel_start[i + 1]]`.
+    pub texel_start: Vec<u32>,
+    /// Texel ids grouped by patch.
+    pub texels: Vec<u32>,
+    /// Patch of each texel.
+    pub of_texel: Vec<PatchId>,
+    /// Block key to patch.
+    pub by_key: HashMap<BlockKey, PatchId>,
+}
+
+impl Patches {
+    /// Number of patches.
+    pub fn len(&self) -> usize {
+        self.area.len()
+    }
+
+    /// True when there are none.
+    pub fn is_empty(&self) -> bool {
+        self.area.is_empty()
+    }
+
+    /// Texel ids of patch `i`.
+    pub fn texels_of(&self, i: usize) -> &[u32] {
+        &self.texels[self.texel_start[i] as usize..self.texel_start[i + 1] as usize]
+    }
+
+    /// Centre of block (bx, by) in texel coordinates.
+    pub fn block_centre(&self, bx: u32, by: u32) -> Vec2 {
+        (Vec2::new(bx as f32, by as f32) + 0.5) * self.block as f32
+    }
+}
+
+/// Groups `texels` into `k × k` blocks per chart.
+pub fn build(texels: &Texels, k: u32) -> Patches {
+    let k = k.max(1);
+    let mut by_key: HashMap<BlockKey, PatchId> = HashMap::new();
+    let mut keys: Vec<BlockKey> = Vec::new();
+    let mut of_texel = Vec::with_capacity(texels.len());
+    for t in 0..texels.len() {
+        let [x, y] = texels.xy[t];
+        let key = (texels.instance[t], texels.chart[t], x / k, y / k);
+        let id = *by_key.entry(key).or_insert_with(|| {
+            keys.push(key);
+            PatchId(keys.len() as u32 - 1)
+        });
+        of_texel.push(id);
+    }
+    let n = keys.len();
+    // Counting sort of texels by patch (stable: texel order within a patch).
+    let mut texel_start = vec![0u32; n + 1];
+    for p in &of_texel {
+        texel_start[p.0 as usize + 1] += 1;
+    }
+    for i in 0..n {
+        texel_start[i + 1] += texel_start[i];
+    }
+    let mut fill = texel_start.clone();
+    let mut grouped = vec![0u32; texels.len()];
+    for (t, p) in of_texel.iter().enumerate() {
+        grouped[fill[p.0 as usize] as usize] = t as u32;
+        fill[p.0 as usize] += 1;
+    }
+    let mut patches = Patches {
+        block: k,
+        p_ws: Vec::with_capacity(n),
+        n_ws: Vec::with_capacity(n),
+        area: Vec::with_capacity(n),
+        albedo: Vec::with_capacity(n),
+        emission: Vec::with_capacity(n),
+        key: keys,
+        texel_start,
+        texels: grouped,
+        of_texel,
+        by_key,
+    };
+    for i in 0..n {
+        let (mut a, mut p, mut nrm, mut rho, mut e) = (0.0f32, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+        for &t in patches.texels_of(i) {
+            let t = t as usize;
+            let w = texels.area[t];
+            a += w;
+            p += texels.p_ws[t] * w;
+            nrm += texels.n_ws[t] * w;
+            rho += texels.albedo[t] * w;
+            e += texels.emission[t] * w;
+        }
+        patches.area.push(a);
+        patches.p_ws.push(p / a);
+        patches.n_ws.push(nrm.normalize_or(Vec3::Y));
+        patches.albedo.push(rho / a);
+        patches.emission.push(e / a);
+    }
+    patches
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocks_split_by_chart_and_size() {
+        let mut t = Texels::default();
+        for (x, y, chart) in [(0, 0, 0), (1, 0, 0), (2, 0, 0), (3, 1, 0), (1, 1, 1)] {
+            t.page.push(0);
+            t.xy.push([x, y]);
+            t.instance.push(0);
+            t.chart.push(chart);
+            t.triangle.push(0);
+            t.p_ws.push(Vec3::new(x as f32, y as f32, 0.0));
+            t.n_ws.push(Vec3::Z);
+            t.area.push(1.0);
+            t.albedo.push(Vec3::splat(0.5));
+            t.emission.push(Vec3::ZERO);
+        }
+        let p = build(&t, 2);
+        // (0,0),(1,0) chart 0 | (2,0),(3,1) chart 0 | (1,1) chart 1
+        assert_eq!(p.len(), 3);
+        assert_eq!(p.texels_of(0), &[0, 1]);
+        assert_eq!(p.area.iter().sum::<f32>(), 5.0);
+        assert_eq!(p.of_texel[4], PatchId(2));
+        assert!((p.p_ws[0] - Vec3::new(0.5, 0.0, 0.0)).length() < 1e-6);
+    }
+}

@@ -1,0 +1,756 @@
+//! glTF 2.0 import (the only file that uses the `gltf` crate).
+//!
+//! Reads `.gltf` and `.glb`, with GLB-embedded, data-URI and external
+//! buffers and images. External files must stay inside the scene's folder
+//! (checked after resolving symlinks, before the file is opened). Every
+//! accessor's byte range is checked against its buffer before any is read,
+//! so the crate's readers never index out of bounds. The node hierarchy is
+//! flattened into [`Instance`]s; primitives are triangulated (lists, strips,
+//! fans), degenerate triangles dropped and counted.
+
+use super::texture::{Texture, TextureRef, Wrap};
+use super::{
+    Alpha, Camera, ImportStats, Instance, Light, LightKind, Material, Mesh, Scene,
+};
+use crate::error::{Error, Result};
+use base64::Engine as _;
+use glam::{Mat4, Vec2, Vec3};
+use gltf::mesh::Mode;
+use std::collections::HashMap;
+use std::path::{Component, Path, PathBuf};
+
+/// Limits applied while importing.
+#[derive(Clone, Debug)]
+pub struct LoadOptions {
+    /// Largest scene, buffer or image file read (bytes).
+    pub max_file_bytes: u64,
+    /// Largest image accepted (width or height, texels), checked from the
+    /// header before decoding.
+    pub max_image_dimension: u32,
+    /// Largest decoded image allocation (bytes).
+    pub max_image_bytes: u64,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            max_file_bytes: 2 << 30,
+            max_image_dimension: 16384,
+            max_image_bytes: 1 << 30,
+        }
+    }
+}
+
+/// Deepest node hierarchy followed (a guard against cycles).
+const MAX_NODE_DEPTH: usize = 256;
+
+struct Ctx<'a> {
+    path: &'a Path,
+    base_dir: PathBuf,
+    options: &'a LoadOptions,
+}
+
+impl Ctx<'_> {
+    fn invalid(&self, location: impl Into<String>, message: impl Into<String>) -> Error {
+        Error::Invalid {
+            path: self.path.to_path_buf(),
+            location: location.into(),
+            message: message.into(),
+        }
+    }
+
+    fn read_limited(&self, file: &Path, location: &str) -> Result<Vec<u8>> {
+        let meta = std::fs::metadata(file).map_err(|e| {
+            self.invalid(location, format!("cannot read `{}`: {e}", file.display()))
+        })?;
+        if meta.len() > self.options.max_file_bytes {
+            return Err(self.invalid(
+                location,
+                format!(
+                    "`{}` is {} bytes, over the {} byte limit",
+                    file.display(),
+                    meta.len(),
+                    self.options.max_file_bytes
+                ),
+            ));
+        }
+        std::fs::read(file).map_err(|e| {
+            self.invalid(location, format!("cannot read `{}`: {e}", file.display()))
+        })
+    }
+
+    /// Resolves a relative URI against the scene folder, refusing absolute
+    /// paths, schemes, and anything (`..`, symlinks) that leaves the folder.
+    fn resolve_uri(&self, uri: &str, location: &str) -> Result<PathBuf> {
+        let decoded = percent_encoding::percent_decode_str(uri)
+            .decode_utf8()
+            .map_err(|_| self.invalid(location, format!("URI `{uri}` is not UTF-8")))?;
+        let rel = Path::new(decoded.as_ref());
+        let has_scheme = decoded
+            .split_once(':')
+            .is_some_and(|(s, _)| !s.is_empty() && !s.contains('/'));
+        if rel.is_absolute() || has_scheme || decoded.starts_with('\\') {
+            return Err(self.invalid(
+                location,
+                format!("URI `{uri}` is absolute; only paths relative to the scene's folder are allowed"),
+            ));
+        }
+        let mut depth = 0i32;
+        for c in rel.components() {
+            match c {
+                Component::ParentDir => depth -= 1,
+                Component::Normal(_) => depth += 1,
+                Component::CurDir => {}
+                _ => depth = -1,
+            }
+            if depth < 0 {
+                return Err(self.invalid(
+                    location,
+                    format!("URI `{uri}` leaves the scene's folder"),
+                ));
+            }
+        }
+        let joined = self.base_dir.join(rel);
+        let canonical_base = self
+            .base_dir
+            .canonicalize()
+            .unwrap_or_else(|_| self.base_dir.clone());
+        let canonical = joined.canonicalize().map_err(|e| {
+            self.invalid(location, format!("cannot read `{}`: {e}", joined.display()))
+        })?;
+        if !canonical.starts_with(&canonical_base) {
+            return Err(self.invalid(
+                location,
+                format!("URI `{uri}` resolves (through a link) outside the scene's folder"),
+            ));
+        }
+        Ok(canonical)
+    }
+
+    fn data_uri(&self, uri: &str, location: &str) -> Result<Option<Vec<u8>>> {
+        let Some(rest) = uri.strip_prefix("data:") else {
+            return Ok(None);
+        };
+        let Some((header, payload)) = rest.split_once(',') else {
+            return Err(self.invalid(location, "malformed data URI (no comma)"));
+        };
+        if !header.ends_with(";base64") {
+            return Err(self.invalid(location, "data URI is not base64"));
+        }
+        base64::engine::general_purpose::STANDARD
+            .decode(payload.trim())
+            .map(Some)
+            .map_err(|e| self.invalid(location, format!("bad base64 in data URI: {e}")))
+    }
+}
+
+/// Loads a `.gltf` or `.glb` file into a [`Scene`].
+///
+/// # Errors
+/// [`Error::Io`] if the file can't be read, [`Error::Parse`] if it isn't valid
+/// glTF (including unsupported required extensions), [`Error::Invalid`] naming
+/// the glTF path of bad data, [`Error::Empty`] if it has no triangles.
+pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
+    let base_dir = path
+        .parent()
+        .map(Path::to_path_buf)
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or_else(|| PathBuf::from("."));
+    let ctx = Ctx {
+        path,
+        base_dir,
+        options,
+    };
+    let meta = std::fs::metadata(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if meta.len() > options.max_file_bytes {
+        return Err(Error::Limit(format!(
+            "{}: {} bytes is over the {} byte file limit",
+            path.display(),
+            meta.len(),
+            options.max_file_bytes
+        )));
+    }
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    if bytes.is_empty() {
+        return Err(Error::Parse {
+            path: path.to_path_buf(),
+            message: "the file is empty".into(),
+        });
+    }
+    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| Error::Parse {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let buffers = load_buffers(&ctx, &gltf)?;
+    check_accessors(&ctx, &gltf.document, &buffers)?;
+
+    let mut scene = Scene::default();
+    let mut image_cache: HashMap<usize, u32> = HashMap::new();
+    for material in gltf.document.materials() {
+        let m = import_material(&ctx, &material, &buffers, &mut scene, &mut image_cache)?;
+        scene.materials.push(m);
+    }
+    let fallback_material = scene.materials.len() as u32;
+    scene.materials.push(Material::fallback());
+
+    // Meshes are imported on first use by a node.
+    let mut mesh_slot: HashMap<usize, u32> = HashMap::new();
+    let root_nodes: Vec<gltf::Node> = match gltf
+        .document
+        .default_scene()
+        .or_else(|| gltf.document.scenes().next())
+    {
+        Some(s) => s.nodes().collect(),
+        None => {
+            return Err(Error::Empty {
+                path: path.to_path_buf(),
+                message: "the glTF has no scene to bake".into(),
+            })
+        }
+    };
+    let mut stack: Vec<(gltf::Node, Mat4, usize)> = root_nodes
+        .into_iter()
+        .rev()
+        .map(|n| (n, Mat4::IDENTITY, 0))
+        .collect();
+    while let Some((node, parent, depth)) = stack.pop() {
+        let location = format!("nodes[{}]", node.index());
+        if depth > MAX_NODE_DEPTH {
+            return Err(ctx.invalid(
+                location,
+                "node hierarchy deeper than 256 levels (a cycle?)",
+            ));
+        }
+        let local = Mat4::from_cols_array_2d(&node.transform().matrix());
+        if !local.is_finite() {
+            return Err(ctx.invalid(location, "transform is not finite"));
+        }
+        let world = parent * local;
+        let node_name = node
+            .name()
+            .map(str::to_owned)
+            .unwrap_or_else(|| format!("node{}", node.index()));
+        if let Some(mesh) = node.mesh() {
+            let slot = match mesh_slot.get(&mesh.index()) {
+                Some(&s) => Some(s),
+                None => {
+                    let m = import_mesh(&ctx, &mesh, &buffers, fallback_material, &mut scene.stats, &mut scene.warnings)?;
+                    if m.triangles.is_empty() {
+                        None
+                    } else {
+                        let s = scene.meshes.len() as u32;
+                        scene.meshes.push(m);
+                        mesh_slot.insert(mesh.index(), s);
+                        Some(s)
+                    }
+                }
+            };
+            if let Some(mesh_index) = slot {
+                if world.determinant().abs() <= f32::MIN_POSITIVE {
+                    scene
+                        .warnings
+                        .push(format!("{location}: transform has zero scale; instance skipped"));
+                } else {
+                    scene.instances.push(Instance {
+                        node: node_name.clone(),
+                        node_index: node.index(),
+                        mesh: mesh_index,
+                        world_from_local: world,
+                    });
+                }
+            }
+        }
+        if let Some(light) = node.light() {
+            scene.lights.push(import_light(&ctx, &light, &world, &node_name)?);
+        }
+        if let Some(camera) = node.camera() {
+            if let gltf::camera::Projection::Perspective(p) = camera.projection() {
+                scene.cameras.push(Camera {
+                    name: node_name.clone(),
+                    world_from_camera: world,
+                    yfov: p.yfov(),
+                    aspect_ratio: p.aspect_ratio(),
+                });
+            }
+        }
+        for child in node.children().collect::<Vec<_>>().into_iter().rev() {
+            stack.push((child, world, depth + 1));
+        }
+    }
+    if scene.instances.is_empty() {
+        return Err(Error::Empty {
+            path: path.to_path_buf(),
+            message: "the scene has no triangles to bake".into(),
+        });
+    }
+    Ok(scene)
+}
+
+fn load_buffers(ctx: &Ctx, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>> {
+    let mut out = Vec::new();
+    for buffer in gltf.document.buffers() {
+        let location = format!("buffers[{}]", buffer.index());
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| ctx.invalid(&location, "refers to the GLB binary chunk, which is missing"))?,
+            gltf::buffer::Source::Uri(uri) => match ctx.data_uri(uri, &location)? {
+                Some(d) => d,
+                None => {
+                    let file = ctx.resolve_uri(uri, &location)?;
+                    ctx.read_limited(&file, &location)?
+                }
+            },
+        };
+        if data.len() < buffer.length() {
+            return Err(ctx.invalid(
+                &location,
+                format!(
+                    "declares {} bytes but only {} are present (truncated?)",
+                    buffer.length(),
+                    data.len()
+                ),
+            ));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
+/// Checks a byte range `offset .. offset + len` against `size`.
+fn in_range(offset: usize, len: usize, size: usize) -> bool {
+    offset.checked_add(len).is_some_and(|end| end <= size)
+}
+
+fn check_view(ctx: &Ctx, view: &gltf::buffer::View, buffers: &[Vec<u8>]) -> Result<()> {
+    let size = buffers[view.buffer().index()].len();
+    if !in_range(view.offset(), view.length(), size) {
+        return Err(ctx.invalid(
+            format!("bufferViews[{}]", view.index()),
+            format!(
+                "bytes {}..{} lie past the end of its {}-byte buffer",
+                view.offset(),
+                view.offset().saturating_add(view.length()),
+                size
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks that every accessor (and sparse part) lies within its buffer view.
+fn check_accessors(ctx: &Ctx, doc: &gltf::Document, buffers: &[Vec<u8>]) -> Result<()> {
+    for view in doc.views() {
+        check_view(ctx, &view, buffers)?;
+    }
+    for acc in doc.accessors() {
+        let location = format!("accessors[{}]", acc.index());
+        let elem = acc.size();
+        if let Some(view) = acc.view() {
+            let stride = view.stride().unwrap_or(elem);
+            if stride < elem {
+                return Err(ctx.invalid(&location, "byteStride is smaller than the element size"));
+            }
+            let needed = if acc.count() == 0 {
+                0
+            } else {
+                (acc.count() - 1)
+                    .checked_mul(stride)
+                    .and_then(|b| b.checked_add(elem))
+                    .unwrap_or(usize::MAX)
+            };
+            if !in_range(acc.offset(), needed, view.length()) {
+                return Err(ctx.invalid(
+                    &location,
+                    format!(
+                        "{} elements at offset {} (stride {}) run past its {}-byte buffer view",
+                        acc.count(),
+                        acc.offset(),
+                        stride,
+                        view.length()
+                    ),
+                ));
+            }
+        }
+        if let Some(sparse) = acc.sparse() {
+            let n = sparse.count();
+            let idx = sparse.indices();
+            let idx_size = match idx.index_type() {
+                gltf::accessor::sparse::IndexType::U8 => 1,
+                gltf::accessor::sparse::IndexType::U16 => 2,
+                gltf::accessor::sparse::IndexType::U32 => 4,
+            };
+            if !in_range(idx.offset(), n.saturating_mul(idx_size), idx.view().length()) {
+                return Err(ctx.invalid(format!("{location}.sparse.indices"), "runs past its buffer view"));
+            }
+            let vals = sparse.values();
+            if !in_range(vals.offset(), n.saturating_mul(elem), vals.view().length()) {
+                return Err(ctx.invalid(format!("{location}.sparse.values"), "runs past its buffer view"));
+            }
+            // Sparse indices must address elements of the accessor.
+            let view = idx.view();
+            let data = &buffers[view.buffer().index()][view.offset() + idx.offset()..];
+            for k in 0..n {
+                let i = match idx_size {
+                    1 => data[k] as usize,
+                    2 => u16::from_le_bytes([data[2 * k], data[2 * k + 1]]) as usize,
+                    _ => u32::from_le_bytes([data[4 * k], data[4 * k + 1], data[4 * k + 2], data[4 * k + 3]]) as usize,
+                };
+                if i >= acc.count() {
+                    return Err(ctx.invalid(
+                        format!("{location}.sparse.indices"),
+                        format!("index {i} is not below the accessor's count {}", acc.count()),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn expect_type(
+    ctx: &Ctx,
+    acc: &gltf::Accessor,
+    location: &str,
+    dims: &[gltf::accessor::Dimensions],
+    types: &[gltf::accessor::DataType],
+) -> Result<()> {
+    if !dims.contains(&acc.dimensions()) || !types.contains(&acc.data_type()) {
+        return Err(ctx.invalid(
+            location,
+            format!(
+                "accessor {} has type {:?}/{:?}, which this attribute does not allow",
+                acc.index(),
+                acc.dimensions(),
+                acc.data_type()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn import_mesh(
+    ctx: &Ctx,
+    mesh: &gltf::Mesh,
+    buffers: &[Vec<u8>],
+    fallback_material: u32,
+    stats: &mut ImportStats,
+    warnings: &mut Vec<String>,
+) -> Result<Mesh> {
+    use gltf::accessor::{DataType as T, Dimensions as D};
+    let mut out = Mesh {
+        name: mesh
+            .name()
+            .map(str::to_owned)
+            .unwrap_or_else(|| format!("mesh{}", mesh.index())),
+        gltf_index: mesh.index(),
+        ..Default::default()
+    };
+    let mut uv1: Vec<Vec2> = Vec::new();
+    let mut all_have_uv1 = true;
+    for prim in mesh.primitives() {
+        let location = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
+        let mode = prim.mode();
+        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            stats.skipped_primitives += 1;
+            warnings.push(format!("{location}: {mode:?} primitive skipped (only triangles are baked)"));
+            continue;
+        }
+        let pos_acc = prim
+            .get(&gltf::Semantic::Positions)
+            .ok_or_else(|| ctx.invalid(&location, "has no POSITION attribute"))?;
+        expect_type(ctx, &pos_acc, &format!("{location}.attributes.POSITION"), &[D::Vec3], &[T::F32])?;
+        if let Some(a) = prim.get(&gltf::Semantic::Normals) {
+            expect_type(ctx, &a, &format!("{location}.attributes.NORMAL"), &[D::Vec3], &[T::F32])?;
+        }
+        for set in 0..2 {
+            if let Some(a) = prim.get(&gltf::Semantic::TexCoords(set)) {
+                expect_type(ctx, &a, &format!("{location}.attributes.TEXCOORD_{set}"), &[D::Vec2], &[T::F32, T::U8, T::U16])?;
+            }
+        }
+        if let Some(a) = prim.indices() {
+            expect_type(ctx, &a, &format!("{location}.indices"), &[D::Scalar], &[T::U8, T::U16, T::U32])?;
+        }
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+        let positions: Vec<Vec3> = reader
+            .read_positions()
+            .ok_or_else(|| ctx.invalid(format!("{location}.attributes.POSITION"), "cannot be read"))?
+            .map(Vec3::from)
+            .collect();
+        if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(ctx.invalid(
+                format!("{location}.attributes.POSITION"),
+                format!("vertex {i} is not finite ({})", positions[i]),
+            ));
+        }
+        let vcount = positions.len();
+        let normals: Option<Vec<Vec3>> = reader.read_normals().map(|it| it.map(Vec3::from).collect());
+        if let Some(n) = &normals {
+            if let Some(i) = n.iter().position(|v| !v.is_finite()) {
+                return Err(ctx.invalid(
+                    format!("{location}.attributes.NORMAL"),
+                    format!("normal {i} is not finite ({})", n[i]),
+                ));
+            }
+        }
+        let read_uv = |set: u32| -> Option<Vec<Vec2>> {
+            reader
+                .read_tex_coords(set)
+                .map(|it| it.into_f32().map(Vec2::from).collect())
+        };
+        let uv0 = read_uv(0).unwrap_or_else(|| vec![Vec2::ZERO; vcount]);
+        let prim_uv1 = read_uv(1);
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(it) => it.into_u32().collect(),
+            None => (0..vcount as u32).collect(),
+        };
+        if let Some(&bad) = indices.iter().find(|&&i| i as usize >= vcount) {
+            return Err(ctx.invalid(
+                format!("{location}.indices"),
+                format!("index {bad} is not below the vertex count {vcount}"),
+            ));
+        }
+        if uv0.len() != vcount || prim_uv1.as_ref().is_some_and(|u| u.len() != vcount)
+            || normals.as_ref().is_some_and(|n| n.len() != vcount)
+        {
+            return Err(ctx.invalid(&location, "attributes have different counts"));
+        }
+        let tris = triangulate(mode, &indices);
+        let material = prim.material().index().map_or(fallback_material, |i| i as u32);
+
+        // Missing normals: glTF asks for flat normals, so split the vertices per triangle.
+        let base = out.positions.len() as u32;
+        let flat = normals.is_none();
+        for t in &tris {
+            let p = t.map(|i| positions[i as usize]);
+            let cross = (p[1] - p[0]).cross(p[2] - p[0]);
+            let scale = (p[1] - p[0]).length_squared() + (p[2] - p[0]).length_squared();
+            let degenerate = t[0] == t[1] || t[1] == t[2] || t[0] == t[2]
+                || cross.length() <= 1e-7 * scale
+                || scale == 0.0;
+            if degenerate {
+                stats.degenerate_triangles += 1;
+                continue;
+            }
+            if flat {
+                let v = out.positions.len() as u32;
+                let n = cross.normalize();
+                for &i in t {
+                    out.positions.push(positions[i as usize]);
+                    out.normals.push(n);
+                    out.uv0.push(uv0[i as usize]);
+                    uv1.push(prim_uv1.as_ref().map_or(Vec2::ZERO, |u| u[i as usize]));
+                }
+                out.triangles.push([v, v + 1, v + 2]);
+            } else {
+                out.triangles.push(t.map(|i| base + i));
+            }
+            out.triangle_material.push(material);
+        }
+        if !flat {
+            let normals = normals.unwrap_or_default();
+            out.positions.extend_from_slice(&positions);
+            out.normals.extend(normals.iter().map(|n| n.normalize_or(Vec3::Y)));
+            out.uv0.extend_from_slice(&uv0);
+            uv1.extend(prim_uv1.clone().unwrap_or_else(|| vec![Vec2::ZERO; vcount]));
+        }
+        all_have_uv1 &= prim_uv1.is_some();
+    }
+    if all_have_uv1 && !out.triangles.is_empty() {
+        out.uv1 = Some(uv1);
+    }
+    Ok(out)
+}
+
+/// Triangle lists from glTF's three triangle modes (glTF 2.0 §3.7.2.1).
+fn triangulate(mode: Mode, idx: &[u32]) -> Vec<[u32; 3]> {
+    match mode {
+        Mode::TriangleStrip => (2..idx.len())
+            .map(|i| {
+                if i % 2 == 0 {
+                    [idx[i - 2], idx[i - 1], idx[i]]
+                } else {
+                    [idx[i - 1], idx[i - 2], idx[i]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => (2..idx.len()).map(|i| [idx[i - 1], idx[i], idx[0]]).collect(),
+        _ => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    }
+}
+
+fn import_material(
+    ctx: &Ctx,
+    material: &gltf::Material,
+    buffers: &[Vec<u8>],
+    scene: &mut Scene,
+    cache: &mut HashMap<usize, u32>,
+) -> Result<Material> {
+    let index = material.index().unwrap_or(0);
+    let location = format!("materials[{index}]");
+    let pbr = material.pbr_metallic_roughness();
+    let base = pbr.base_color_factor();
+    let emissive = material.emissive_factor();
+    let strength = material.emissive_strength().unwrap_or(1.0);
+    let values = base.iter().chain(emissive.iter()).chain(std::iter::once(&strength));
+    if values.clone().any(|v| !v.is_finite()) || values.clone().any(|&v| v < 0.0) {
+        return Err(ctx.invalid(&location, "colour factors must be finite and non-negative"));
+    }
+    let mut texture_ref = |info: Option<gltf::texture::Info>, what: &str| -> Result<Option<TextureRef>> {
+        let Some(info) = info else { return Ok(None) };
+        let (offset, rotation, scale) = match info.texture_transform() {
+            Some(t) => (Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale())),
+            None => (Vec2::ZERO, 0.0, Vec2::ONE),
+        };
+        if info.tex_coord() != 0 {
+            scene.warnings.push(format!(
+                "{location}.{what}: uses TEXCOORD_{}; sampled through TEXCOORD_0",
+                info.tex_coord()
+            ));
+        }
+        let texture = info.texture();
+        let image_index = texture.source().index();
+        let slot = match cache.get(&image_index) {
+            Some(&s) => s,
+            None => {
+                let img = decode_image(ctx, &texture, buffers)?;
+                let s = scene.textures.len() as u32;
+                scene.textures.push(img);
+                cache.insert(image_index, s);
+                s
+            }
+        };
+        Ok(Some(TextureRef { texture: slot, offset, rotation, scale }))
+    };
+    let albedo_texture = texture_ref(pbr.base_color_texture(), "pbrMetallicRoughness.baseColorTexture")?;
+    let emission_texture = texture_ref(material.emissive_texture(), "emissiveTexture")?;
+    Ok(Material {
+        name: material
+            .name()
+            .map(str::to_owned)
+            .unwrap_or_else(|| format!("material{index}")),
+        albedo: Vec3::new(base[0], base[1], base[2]),
+        alpha_factor: base[3],
+        albedo_texture,
+        emission: Vec3::from(emissive) * strength,
+        emission_texture,
+        double_sided: material.double_sided(),
+        alpha: match material.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => Alpha::Opaque,
+            gltf::material::AlphaMode::Mask => Alpha::Mask {
+                cutoff: material.alpha_cutoff().unwrap_or(0.5),
+            },
+            gltf::material::AlphaMode::Blend => Alpha::Mask { cutoff: 0.5 },
+        },
+    })
+}
+
+fn decode_image(ctx: &Ctx, texture: &gltf::Texture, buffers: &[Vec<u8>]) -> Result<Texture> {
+    let image = texture.source();
+    let location = format!("images[{}]", image.index());
+    let bytes: Vec<u8> = match image.source() {
+        gltf::image::Source::View { view, .. } => {
+            let data = &buffers[view.buffer().index()];
+            data[view.offset()..view.offset() + view.length()].to_vec()
+        }
+        gltf::image::Source::Uri { uri, .. } => match ctx.data_uri(uri, &location)? {
+            Some(d) => d,
+            None => {
+                let file = ctx.resolve_uri(uri, &location)?;
+                ctx.read_limited(&file, &location)?
+            }
+        },
+    };
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| ctx.invalid(&location, format!("cannot read image: {e}")))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(ctx.options.max_image_dimension);
+    limits.max_image_height = Some(ctx.options.max_image_dimension);
+    limits.max_alloc = Some(ctx.options.max_image_bytes);
+    reader.limits(limits);
+    let decoded = reader
+        .decode()
+        .map_err(|e| ctx.invalid(&location, format!("cannot decode image: {e}")))?
+        .to_rgba8();
+    let (width, height) = decoded.dimensions();
+    if width == 0 || height == 0 {
+        return Err(ctx.invalid(&location, "image has no pixels"));
+    }
+    let wrap = |m: gltf::texture::WrappingMode| match m {
+        gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+        gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+        gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+    };
+    let sampler = texture.sampler();
+    Ok(Texture {
+        width,
+        height,
+        rgba: decoded.pixels().map(|p| p.0).collect(),
+        wrap_s: wrap(sampler.wrap_s()),
+        wrap_t: wrap(sampler.wrap_t()),
+    })
+}
+
+fn import_light(
+    ctx: &Ctx,
+    light: &gltf::khr_lights_punctual::Light,
+    world: &Mat4,
+    node_name: &str,
+) -> Result<Light> {
+    use gltf::khr_lights_punctual::Kind;
+    let location = format!("extensions.KHR_lights_punctual.lights[{}]", light.index());
+    let color = Vec3::from(light.color());
+    let intensity = light.intensity();
+    if !color.is_finite() || !intensity.is_finite() || intensity < 0.0 || color.min_element() < 0.0 {
+        return Err(ctx.invalid(location, "colour and intensity must be finite and non-negative"));
+    }
+    let kind = match light.kind() {
+        Kind::Directional => LightKind::Directional,
+        Kind::Point => LightKind::Point,
+        Kind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => LightKind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        },
+    };
+    Ok(Light {
+        name: light
+            .name()
+            .map(str::to_owned)
+            .unwrap_or_else(|| node_name.to_owned()),
+        kind,
+        intensity: color * intensity,
+        position: world.transform_point3(Vec3::ZERO),
+        direction: world.transform_vector3(Vec3::NEG_Z).normalize_or(Vec3::NEG_Y),
+        range: light.range(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strips_and_fans() {
+        assert_eq!(triangulate(Mode::TriangleStrip, &[0, 1, 2, 3]), vec![[0, 1, 2], [2, 1, 3]]);
+        assert_eq!(triangulate(Mode::TriangleFan, &[0, 1, 2, 3]), vec![[1, 2, 0], [2, 3, 0]]);
+        assert_eq!(triangulate(Mode::Triangles, &[0, 1, 2, 3]), vec![[0, 1, 2]]);
+    }
+
+    #[test]
+    fn ranges() {
+        assert!(in_range(0, 4, 4));
+        assert!(!in_range(1, 4, 4));
+        assert!(!in_range(usize::MAX, 2, 4));
+    }
+}

@@ -1,0 +1,255 @@
+//! Stage 1 — the imported scene: meshes in their local space, the node
+//! instances that place them in the world, materials, textures, lights and
+//! cameras. `gltf.rs` is the only file that reads glTF.
+//!
+//! Units: metres; emission is emitted radiance (W·sr⁻¹·m⁻²); point and spot
+//! light intensity is W/sr (≙ cd); directional light intensity is W/m² (≙ lux).
+
+mod gltf;
+pub mod texture;
+
+pub use self::gltf::{load, LoadOptions};
+use glam::{Mat3, Mat4, Vec2, Vec3};
+pub use texture::{Texture, TextureRef, Wrap};
+
+/// A mesh in its local space: the triangles of all its (triangle) primitives
+/// concatenated. Degenerate triangles have already been removed.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    /// `meshes[i].name`, or `mesh<i>`.
+    pub name: String,
+    /// Index in the glTF `meshes` array.
+    pub gltf_index: usize,
+    /// Vertex positions (local space).
+    pub positions: Vec<Vec3>,
+    /// Vertex normals (local space, unit length).
+    pub normals: Vec<Vec3>,
+    /// `TEXCOORD_0`, or zeros.
+    pub uv0: Vec<Vec2>,
+    /// `TEXCOORD_1` when every primitive has one (used by `--uv existing`).
+    pub uv1: Option<Vec<Vec2>>,
+    /// Triangles, counter-clockwise seen from the front.
+    pub triangles: Vec<[u32; 3]>,
+    /// Material index (into [`Scene::materials`]) per triangle.
+    pub triangle_material: Vec<u32>,
+}
+
+/// One placement of a mesh by a node: each instance gets its own lightmap
+/// rectangle.
+#[derive(Clone, Debug)]
+pub struct Instance {
+    /// The node's name, or `node<i>`.
+    pub node: String,
+    /// Index in the glTF `nodes` array.
+    pub node_index: usize,
+    /// Index into [`Scene::meshes`].
+    pub mesh: u32,
+    /// Local to world transform (the product of the node path's transforms).
+    pub world_from_local: Mat4,
+}
+
+impl Instance {
+    /// True when the transform mirrors (negative determinant): the triangle
+    /// winding must then be flipped to keep front faces in front.
+    pub fn mirrors(&self) -> bool {
+        self.world_from_local.determinant() < 0.0
+    }
+
+    /// Matrix that takes local normals to world normals (inverse transpose).
+    pub fn normal_matrix(&self) -> Mat3 {
+        Mat3::from_mat4(self.world_from_local).inverse().transpose()
+    }
+
+    /// Uniform scale that best describes the transform: the cube root of
+    /// |det|, used to keep one texel density across scaled instances.
+    pub fn uniform_scale(&self) -> f32 {
+        self.world_from_local.determinant().abs().cbrt()
+    }
+}
+
+/// How alpha is used (glTF `alphaMode`); MASK and BLEND are both cut out at
+/// `cutoff` (0.5 for BLEND), for rays and for texels alike.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Alpha {
+    /// Fully opaque.
+    Opaque,
+    /// Cut out where base colour alpha < cutoff.
+    Mask {
+        /// glTF `alphaCutoff`.
+        cutoff: f32,
+    },
+}
+
+/// A Lambertian material.
+#[derive(Clone, Debug)]
+pub struct Material {
+    /// `materials[i].name`, or `material<i>`, or `default`.
+    pub name: String,
+    /// Linear RGB albedo factor ρ (glTF `baseColorFactor`; metallic is ignored).
+    pub albedo: Vec3,
+    /// `baseColorFactor` alpha.
+    pub alpha_factor: f32,
+    /// Base colour texture (sRGB), multiplied into `albedo`.
+    pub albedo_texture: Option<TextureRef>,
+    /// Emitted radiance factor: `emissiveFactor × KHR_materials_emissive_strength`.
+    pub emission: Vec3,
+    /// Emissive texture (sRGB), multiplied into `emission`.
+    pub emission_texture: Option<TextureRef>,
+    /// glTF `doubleSided`.
+    pub double_sided: bool,
+    /// Cut-out mode.
+    pub alpha: Alpha,
+}
+
+impl Material {
+    /// The material used where glTF gives none: a white-ish diffuse (ρ = 0.8),
+    /// since glTF's default (white, fully metallic) has no diffuse response.
+    pub fn fallback() -> Self {
+        Material {
+            name: "default".into(),
+            albedo: Vec3::splat(0.8),
+            alpha_factor: 1.0,
+            albedo_texture: None,
+            emission: Vec3::ZERO,
+            emission_texture: None,
+            double_sided: false,
+            alpha: Alpha::Opaque,
+        }
+    }
+
+    /// True when the material emits anything.
+    pub fn is_emissive(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+}
+
+/// `KHR_lights_punctual` light kinds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightKind {
+    /// Directional: `intensity` is irradiance on a surface facing it (W/m²).
+    Directional,
+    /// Point: `intensity` is radiant intensity (W/sr).
+    Point,
+    /// Spot: a point light with the spec's smooth cone falloff.
+    Spot {
+        /// Inner cone angle (radians).
+        inner_cone_angle: f32,
+        /// Outer cone angle (radians).
+        outer_cone_angle: f32,
+    },
+}
+
+/// A punctual light placed in the world.
+#[derive(Clone, Debug)]
+pub struct Light {
+    /// The node's name.
+    pub name: String,
+    /// Kind and cone.
+    pub kind: LightKind,
+    /// Linear RGB colour × intensity.
+    pub intensity: Vec3,
+    /// Position (world).
+    pub position: Vec3,
+    /// Direction the light points to (world, unit): the node's −Z.
+    pub direction: Vec3,
+    /// Range cut-off (metres), if any.
+    pub range: Option<f32>,
+}
+
+/// A perspective camera placed in the world.
+#[derive(Clone, Debug)]
+pub struct Camera {
+    /// The node's name.
+    pub name: String,
+    /// Camera to world transform (looks down −Z).
+    pub world_from_camera: Mat4,
+    /// Vertical field of view (radians).
+    pub yfov: f32,
+    /// Aspect ratio, if the file gives one.
+    pub aspect_ratio: Option<f32>,
+}
+
+/// Counts the importer reports.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct ImportStats {
+    /// Zero-area or repeated-index triangles dropped.
+    pub degenerate_triangles: u64,
+    /// Point and line primitives skipped.
+    pub skipped_primitives: u64,
+}
+
+/// The imported scene.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    /// Meshes in local space.
+    pub meshes: Vec<Mesh>,
+    /// Node instances of the meshes.
+    pub instances: Vec<Instance>,
+    /// Materials; the last one may be [`Material::fallback`].
+    pub materials: Vec<Material>,
+    /// Decoded textures.
+    pub textures: Vec<Texture>,
+    /// Punctual lights.
+    pub lights: Vec<Light>,
+    /// Cameras.
+    pub cameras: Vec<Camera>,
+    /// Non-fatal problems found on import.
+    pub warnings: Vec<String>,
+    /// Import counters.
+    pub stats: ImportStats,
+}
+
+impl Scene {
+    /// Number of triangles after instancing.
+    pub fn instanced_triangle_count(&self) -> usize {
+        self.instances
+            .iter()
+            .map(|i| self.meshes[i.mesh as usize].triangles.len())
+            .sum()
+    }
+
+    /// True when some material emits or some light shines.
+    pub fn has_emitters(&self) -> bool {
+        !self.lights.is_empty()
+            || self.instances.iter().any(|inst| {
+                let mesh = &self.meshes[inst.mesh as usize];
+                mesh.triangle_material
+                    .iter()
+                    .any(|&m| self.materials[m as usize].is_emissive())
+            })
+    }
+
+    /// Albedo of `material` at texture coordinate `uv0` (linear RGB), and its alpha.
+    pub fn albedo_at(&self, material: u32, uv0: Vec2) -> (Vec3, f32) {
+        let m = &self.materials[material as usize];
+        match &m.albedo_texture {
+            Some(t) => {
+                let texel = self.textures[t.texture as usize].sample(t.transform_uv(uv0));
+                (m.albedo * texel.truncate(), m.alpha_factor * texel.w)
+            }
+            None => (m.albedo, m.alpha_factor),
+        }
+    }
+
+    /// Emitted radiance of `material` at `uv0` (linear RGB).
+    pub fn emission_at(&self, material: u32, uv0: Vec2) -> Vec3 {
+        let m = &self.materials[material as usize];
+        match &m.emission_texture {
+            Some(t) if m.is_emissive() => {
+                m.emission
+                    * self.textures[t.texture as usize]
+                        .sample(t.transform_uv(uv0))
+                        .truncate()
+            }
+            _ => m.emission,
+        }
+    }
+
+    /// True when the surface of `material` at `uv0` is cut out (transparent).
+    pub fn is_cut_out(&self, material: u32, uv0: Vec2) -> bool {
+        match self.materials[material as usize].alpha {
+            Alpha::Opaque => false,
+            Alpha::Mask { cutoff } => self.albedo_at(material, uv0).1 < cutoff,
+        }
+    }
+}

@@ -1,0 +1,314 @@
+//! Stage 3 — lightmap texels: every triangle rasterised into the atlas
+//! *exactly*: each texel square is clipped against the triangle
+//! (Sutherland–Hodgman), so a texel gets the world area it really covers,
+//! the area-weighted centroid as its position and the covering material's
+//! albedo and emission. This is conservative (thin triangles still get every
+//! texel they touch) and conserves area: Σ texel area = Σ triangle area.
+
+use crate::atlas::Atlas;
+use crate::geometry::Geometry;
+use crate::scene::Scene;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+/// Marks an empty texel in [`Texels::index`].
+pub const EMPTY: u32 = u32::MAX;
+
+/// Covered lightmap texels (struct of arrays, indexed by texel id).
+#[derive(Clone, Debug, Default)]
+pub struct Texels {
+    /// Atlas page.
+    pub page: Vec<u32>,
+    /// Column and row in the page.
+    pub xy: Vec<[u32; 2]>,
+    /// Instance covering the texel.
+    pub instance: Vec<u32>,
+    /// Chart (per mesh) covering the texel.
+    pub chart: Vec<u32>,
+    /// Triangle covering most of the texel.
+    pub triangle: Vec<u32>,
+    /// Area-weighted centroid (world).
+    pub p_ws: Vec<Vec3>,
+    /// Area-weighted geometric normal (world, unit).
+    pub n_ws: Vec<Vec3>,
+    /// Covered world area (m²).
+    pub area: Vec<f32>,
+    /// Area-weighted albedo ρ.
+    pub albedo: Vec<Vec3>,
+    /// Area-weighted emitted radiance.
+    pub emission: Vec<Vec3>,
+    /// Per page, `width × height` texel ids (row-major), [`EMPTY`] where none.
+    pub index: Vec<Vec<u32>>,
+    /// Page width.
+    pub width: u32,
+    /// Page height.
+    pub height: u32,
+    /// Triangles that got no texel (degenerate in UV space).
+    pub unmapped_triangles: u64,
+}
+
+impl Texels {
+    /// Number of texels.
+    pub fn len(&self) -> usize {
+        self.page.len()
+    }
+
+    /// True when there are none.
+    pub fn is_empty(&self) -> bool {
+        self.page.is_empty()
+    }
+
+    /// The texel at integer `(x, y)` of `page`, if covered.
+    pub fn at(&self, page: u32, x: i64, y: i64) -> Option<u32> {
+        if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
+            return None;
+        }
+        let id = self.index[page as usize][(y as u32 * self.width + x as u32) as usize];
+        (id != EMPTY).then_some(id)
+    }
+
+    /// The texel holding lightmap point `uv_lm` on `page` for a surface of
+    /// (`instance`, `chart`); when rounding puts it just outside its chart,
+    /// the nearest texel of that chart in the 3×3 neighbourhood.
+    pub fn lookup(&self, page: u32, uv_lm: Vec2, instance: u32, chart: u32) -> Option<u32> {
+        let (x, y) = (uv_lm.x.floor() as i64, uv_lm.y.floor() as i64);
+        if let Some(t) = self.at(page, x, y) {
+            if self.instance[t as usize] == instance && self.chart[t as usize] == chart {
+                return Some(t);
+            }
+        }
+        let mut best: Option<(f32, u32)> = None;
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                if let Some(t) = self.at(page, x + dx, y + dy) {
+                    if self.instance[t as usize] == instance && self.chart[t as usize] == chart {
+                        let c = Vec2::new((x + dx) as f32 + 0.5, (y + dy) as f32 + 0.5);
+                        let d = c.distance_squared(uv_lm);
+                        if best.is_none_or(|(bd, _)| d < bd) {
+                            best = Some((d, t));
+                        }
+                    }
+                }
+            }
+        }
+        best.map(|(_, t)| t)
+    }
+}
+
+/// Area and centroid of triangle `t` clipped to the unit square at `(x, y)`.
+fn clip_to_texel(t: &[Vec2; 3], x: f32, y: f32) -> Option<(f32, Vec2)> {
+    let mut poly: Vec<Vec2> = t.to_vec();
+    let mut next: Vec<Vec2> = Vec::with_capacity(8);
+    // Four half-planes: x ≥ x0, x ≤ x0+1, y ≥ y0, y ≤ y0+1.
+    let planes: [(usize, f32, f32); 4] = [(0, x, 1.0), (0, x + 1.0, -1.0), (1, y, 1.0), (1, y + 1.0, -1.0)];
+    for (axis, bound, sign) in planes {
+        next.clear();
+        let inside = |p: Vec2| (p[axis] - bound) * sign >= 0.0;
+        for i in 0..poly.len() {
+            let a = poly[i];
+            let b = poly[(i + 1) % poly.len()];
+            let (ia, ib) = (inside(a), inside(b));
+            if ia {
+                next.push(a);
+            }
+            if ia != ib {
+                let s = (bound - a[axis]) / (b[axis] - a[axis]);
+                next.push(a + (b - a) * s);
+            }
+        }
+        std::mem::swap(&mut poly, &mut next);
+        if poly.len() < 3 {
+            return None;
+        }
+    }
+    // Shoelace area and centroid.
+    let (mut a2, mut c) = (0.0f32, Vec2::ZERO);
+    for i in 0..poly.len() {
+        let p = poly[i];
+        let q = poly[(i + 1) % poly.len()];
+        let cr = p.perp_dot(q);
+        a2 += cr;
+        c += (p + q) * cr;
+    }
+    if a2.abs() <= 1e-12 {
+        return None;
+    }
+    Some((0.5 * a2.abs(), c / (3.0 * a2)))
+}
+
+/// Barycentric weights (w0, w1, w2) of `p` in triangle `t` (2D).
+pub fn barycentric(t: &[Vec2; 3], p: Vec2) -> Vec3 {
+    let d = (t[1] - t[0]).perp_dot(t[2] - t[0]);
+    let w1 = (p - t[0]).perp_dot(t[2] - t[0]) / d;
+    let w2 = (t[1] - t[0]).perp_dot(p - t[0]) / d;
+    Vec3::new(1.0 - w1 - w2, w1, w2)
+}
+
+#[derive(Clone, Copy, Default)]
+struct Accum {
+    area: f32,
+    best_cov: f32,
+    tri: u32,
+    chart: u32,
+    p: Vec3,
+    n: Vec3,
+    albedo: Vec3,
+    emission: Vec3,
+}
+
+/// Rasterises every triangle of `geometry` into the atlas.
+pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
+    let (w, h) = (atlas.width, atlas.height);
+    // Triangles of each instance are contiguous in `geometry`.
+    let mut ranges = vec![(0usize, 0usize); scene.instances.len()];
+    for (t, &i) in geometry.instance.iter().enumerate() {
+        let r = &mut ranges[i as usize];
+        if r.1 == 0 {
+            r.0 = t;
+        }
+        r.1 = t + 1;
+    }
+    let per_instance: Vec<(Vec<(u32, u32, Accum)>, u64)> = ranges
+        .par_iter()
+        .enumerate()
+        .map(|(inst, &(start, end))| {
+            let rect = atlas.instances[inst];
+            let x0 = (rect.min[0] * w as f32).floor().max(0.0) as u32;
+            let y0 = (rect.min[1] * h as f32).floor().max(0.0) as u32;
+            let x1 = ((rect.max[0] * w as f32).ceil() as u32).min(w);
+            let y1 = ((rect.max[1] * h as f32).ceil() as u32).min(h);
+            let (rw, rh) = (x1.saturating_sub(x0), y1.saturating_sub(y0));
+            let mut grid = vec![Accum::default(); (rw * rh) as usize];
+            let mut unmapped = 0u64;
+            for t in start..end {
+                let lm = geometry.uv_lm[t];
+                let lm_area = 0.5 * (lm[1] - lm[0]).perp_dot(lm[2] - lm[0]).abs();
+                if lm_area <= 1e-10 || geometry.chart[t] == u32::MAX {
+                    unmapped += 1;
+                    continue;
+                }
+                let world_per_texel = geometry.area[t] / lm_area;
+                let lo = lm[0].min(lm[1]).min(lm[2]).floor();
+                let hi = lm[0].max(lm[1]).max(lm[2]).ceil();
+                let tx0 = (lo.x as i64).max(x0 as i64);
+                let ty0 = (lo.y as i64).max(y0 as i64);
+                let tx1 = (hi.x as i64).min(x1 as i64);
+                let ty1 = (hi.y as i64).min(y1 as i64);
+                let mut covered = false;
+                for y in ty0..ty1 {
+                    for x in tx0..tx1 {
+                        let Some((cov, centroid)) = clip_to_texel(&lm, x as f32, y as f32) else {
+                            continue;
+                        };
+                        let bary = barycentric(&lm, centroid);
+                        let (u, v) = (bary.y, bary.z);
+                        let material = geometry.material[t];
+                        let uv0 = geometry.uv0_at(t as u32, u, v);
+                        if scene.is_cut_out(material, uv0) {
+                            continue;
+                        }
+                        covered = true;
+                        let a = cov * world_per_texel;
+                        let cell = &mut grid[((y as u32 - y0) * rw + (x as u32 - x0)) as usize];
+                        if cov > cell.best_cov {
+                            cell.best_cov = cov;
+                            cell.tri = t as u32;
+                            cell.chart = geometry.chart[t];
+                        }
+                        cell.area += a;
+                        cell.p += geometry.point(t as u32, u, v) * a;
+                        cell.n += geometry.ng_ws[t] * a;
+                        cell.albedo += scene.albedo_at(material, uv0).0 * a;
+                        cell.emission += scene.emission_at(material, uv0) * a;
+                    }
+                }
+                if !covered {
+                    unmapped += 1;
+                }
+            }
+            let mut out = Vec::new();
+            for y in 0..rh {
+                for x in 0..rw {
+                    let c = grid[(y * rw + x) as usize];
+                    if c.area > 0.0 {
+                        out.push((x0 + x, y0 + y, c));
+                    }
+                }
+            }
+            (out, unmapped)
+        })
+        .collect();
+
+    let mut tx = Texels {
+        index: vec![vec![EMPTY; (w * h) as usize]; atlas.page_count.max(1) as usize],
+        width: w,
+        height: h,
+        ..Default::default()
+    };
+    for (inst, (cells, unmapped)) in per_instance.into_iter().enumerate() {
+        tx.unmapped_triangles += unmapped;
+        let page = atlas.instances[inst].page;
+        for (x, y, c) in cells {
+            let id = tx.len() as u32;
+            let slot = &mut tx.index[page as usize][(y * w + x) as usize];
+            if *slot != EMPTY {
+                // Two instances claim one texel: keep the first (never
+                // happens with a valid atlas; counted by the tests).
+                continue;
+            }
+            *slot = id;
+            tx.page.push(page);
+            tx.xy.push([x, y]);
+            tx.instance.push(inst as u32);
+            tx.chart.push(c.chart);
+            tx.triangle.push(c.tri);
+            tx.p_ws.push(c.p / c.area);
+            tx.n_ws.push(c.n.normalize_or(geometry.ng_ws[c.tri as usize]));
+            tx.area.push(c.area);
+            tx.albedo.push(c.albedo / c.area);
+            tx.emission.push(c.emission / c.area);
+        }
+    }
+    tx
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clip_full_and_partial() {
+        let big = [Vec2::new(-10.0, -10.0), Vec2::new(10.0, -10.0), Vec2::new(0.0, 10.0)];
+        let (a, c) = clip_to_texel(&big, 0.0, 0.0).unwrap();
+        assert!((a - 1.0).abs() < 1e-5 && (c - Vec2::splat(0.5)).length() < 1e-5);
+        // Lower-left half of the texel.
+        let half = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)];
+        let (a, c) = clip_to_texel(&half, 0.0, 0.0).unwrap();
+        assert!((a - 0.5).abs() < 1e-6 && (c - Vec2::splat(1.0 / 3.0)).length() < 1e-5);
+        assert!(clip_to_texel(&half, 3.0, 3.0).is_none());
+    }
+
+    /// Exact coverage conserves area: a thin sliver still covers its texels
+    /// and their clipped areas add up to its own.
+    #[test]
+    fn coverage_sums_to_triangle_area() {
+        let t = [Vec2::new(0.3, 0.2), Vec2::new(7.9, 0.35), Vec2::new(4.1, 0.5)];
+        let area = 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]).abs();
+        let mut sum = 0.0;
+        for y in 0..2 {
+            for x in 0..9 {
+                if let Some((a, _)) = clip_to_texel(&t, x as f32, y as f32) {
+                    sum += a;
+                }
+            }
+        }
+        assert!((sum - area).abs() < 1e-5 * area.max(1.0), "{sum} vs {area}");
+    }
+
+    #[test]
+    fn barycentric_of_vertices() {
+        let t = [Vec2::new(0.0, 0.0), Vec2::new(2.0, 0.0), Vec2::new(0.0, 3.0)];
+        assert!((barycentric(&t, t[1]) - Vec3::new(0.0, 1.0, 0.0)).length() < 1e-6);
+        assert!((barycentric(&t, t[2]) - Vec3::new(0.0, 0.0, 1.0)).length() < 1e-6);
+    }
+}
