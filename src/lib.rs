@@ -265,6 +265,7 @@ impl Bake<'_> {
                 degenerate_triangles: st.degenerate_triangles,
                 skipped_primitives: st.skipped_primitives,
                 unmapped_triangles: self.texels.unmapped_triangles,
+                chart_overlaps: self.texels.chart_overlaps,
                 pages: self.atlas.page_count as u64,
                 page_size: [self.atlas.width, self.atlas.height],
                 charts: self.atlas.chart_count as u64,

@@ -31,6 +31,8 @@ pub struct Counts {
     pub skipped_primitives: u64,
     /// Triangles that got no lightmap texel.
     pub unmapped_triangles: u64,
+    /// Texels touched by two charts (0 for a valid atlas).
+    pub chart_overlaps: u64,
     /// Atlas pages.
     pub pages: u64,
     /// Page width × height.

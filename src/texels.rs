@@ -45,6 +45,9 @@ pub struct Texels {
     pub height: u32,
     /// Triangles that got no texel (degenerate in UV space).
     pub unmapped_triangles: u64,
+    /// Texels touched by two different charts (0 for a valid atlas: charts
+    /// are `2 × padding` apart).
+    pub chart_overlaps: u64,
 }
 
 impl Texels {
@@ -168,7 +171,7 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
         }
         r.1 = t + 1;
     }
-    let per_instance: Vec<(Vec<(u32, u32, Accum)>, u64)> = ranges
+    let per_instance: Vec<(Vec<(u32, u32, Accum)>, u64, u64)> = ranges
         .par_iter()
         .enumerate()
         .map(|(inst, &(start, end))| {
@@ -180,6 +183,7 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
             let (rw, rh) = (x1.saturating_sub(x0), y1.saturating_sub(y0));
             let mut grid = vec![Accum::default(); (rw * rh) as usize];
             let mut unmapped = 0u64;
+            let mut overlaps = 0u64;
             for t in start..end {
                 let lm = geometry.uv_lm[t];
                 let lm_area = 0.5 * (lm[1] - lm[0]).perp_dot(lm[2] - lm[0]).abs();
@@ -210,6 +214,9 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
                         covered = true;
                         let a = cov * world_per_texel;
                         let cell = &mut grid[((y as u32 - y0) * rw + (x as u32 - x0)) as usize];
+                        if cell.area > 0.0 && cell.chart != geometry.chart[t] {
+                            overlaps += 1;
+                        }
                         if cov > cell.best_cov {
                             cell.best_cov = cov;
                             cell.tri = t as u32;
@@ -235,7 +242,7 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
                     }
                 }
             }
-            (out, unmapped)
+            (out, unmapped, overlaps)
         })
         .collect();
 
@@ -245,15 +252,17 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
         height: h,
         ..Default::default()
     };
-    for (inst, (cells, unmapped)) in per_instance.into_iter().enumerate() {
+    for (inst, (cells, unmapped, overlaps)) in per_instance.into_iter().enumerate() {
         tx.unmapped_triangles += unmapped;
+        tx.chart_overlaps += overlaps;
         let page = atlas.instances[inst].page;
         for (x, y, c) in cells {
             let id = tx.len() as u32;
             let slot = &mut tx.index[page as usize][(y * w + x) as usize];
             if *slot != EMPTY {
                 // Two instances claim one texel: keep the first (never
-                // happens with a valid atlas; counted by the tests).
+                // happens with a valid atlas).
+                tx.chart_overlaps += 1;
                 continue;
             }
             *slot = id;

@@ -70,12 +70,13 @@ impl Surfaces<'_> {
         let tri = self.texels.triangle[t];
         let [x, y] = self.texels.xy[t];
         let q = Vec2::new(x as f32, y as f32) + jitter;
-        let w = barycentric(&self.geometry.uv_lm[tri as usize], q);
-        if w.min_element() >= 0.0 {
-            (self.geometry.point(tri, w.y, w.z), self.geometry.ng_ws[tri as usize])
-        } else {
-            (self.texels.p_ws[t], self.texels.n_ws[t])
-        }
+        // Points outside the triangle (texels it covers partly) are clamped
+        // onto it, and every point is kept a hair inside its edges: a ray
+        // leaving exactly from an edge that meets another face can slip
+        // through the crack between them.
+        let w = barycentric(&self.geometry.uv_lm[tri as usize], q).max(glam::Vec3::splat(1e-4));
+        let w = w / w.element_sum();
+        (self.geometry.point(tri, w.y, w.z), self.geometry.ng_ws[tri as usize])
     }
 
     /// Where a ray from `origin` along `dir` lands.

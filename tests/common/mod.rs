@@ -1,0 +1,200 @@
+//! Test helpers: the shipped reference scenes, and a tiny glTF writer for
+//! scenes made in code (analytic cases and hostile inputs).
+#![allow(dead_code)]
+
+use base64::Engine as _;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+/// A reference scene shipped in `scenes/` (copied from `../shared/scenes`).
+pub fn scene_path(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name)
+}
+
+/// `scenes/expected.json`.
+pub fn expected() -> Value {
+    let text = std::fs::read_to_string(scene_path("expected.json")).expect("scenes/expected.json");
+    serde_json::from_str(&text).expect("expected.json parses")
+}
+
+/// A fresh, empty temporary folder for one test.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("radbake-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Builds a glTF 2.0 JSON document with one embedded (data URI) buffer.
+#[derive(Default)]
+pub struct GltfBuilder {
+    pub buffer: Vec<u8>,
+    pub views: Vec<Value>,
+    pub accessors: Vec<Value>,
+    pub meshes: Vec<Value>,
+    pub nodes: Vec<Value>,
+    pub materials: Vec<Value>,
+}
+
+impl GltfBuilder {
+    fn push_view(&mut self, bytes: &[u8], target: u32) -> usize {
+        while self.buffer.len() % 4 != 0 {
+            self.buffer.push(0);
+        }
+        let offset = self.buffer.len();
+        self.buffer.extend_from_slice(bytes);
+        self.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len(), "target": target}));
+        self.views.len() - 1
+    }
+
+    /// A VEC3 float accessor (with min/max, as POSITION requires).
+    pub fn vec3(&mut self, data: &[[f32; 3]]) -> usize {
+        let bytes: Vec<u8> = data.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+        let view = self.push_view(&bytes, 34962);
+        let mut min = [f32::INFINITY; 3];
+        let mut max = [f32::NEG_INFINITY; 3];
+        for p in data {
+            for c in 0..3 {
+                min[c] = min[c].min(p[c]);
+                max[c] = max[c].max(p[c]);
+            }
+        }
+        let (min, max): (Vec<Value>, Vec<Value>) = if data.iter().flatten().all(|f| f.is_finite()) {
+            (min.iter().map(|&v| json!(v)).collect(), max.iter().map(|&v| json!(v)).collect())
+        } else {
+            (vec![json!(0.0); 3], vec![json!(0.0); 3])
+        };
+        self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "VEC3", "min": min, "max": max}));
+        self.accessors.len() - 1
+    }
+
+    /// A SCALAR u32 index accessor.
+    pub fn indices(&mut self, idx: &[u32]) -> usize {
+        let bytes: Vec<u8> = idx.iter().flat_map(|i| i.to_le_bytes()).collect();
+        let view = self.push_view(&bytes, 34963);
+        self.accessors.push(json!({"bufferView": view, "componentType": 5125, "count": idx.len(), "type": "SCALAR"}));
+        self.accessors.len() - 1
+    }
+
+    /// A Lambertian material (albedo, emitted radiance).
+    pub fn material(&mut self, albedo: [f32; 3], emission: [f32; 3]) -> usize {
+        let peak = emission.iter().cloned().fold(0.0f32, f32::max);
+        let mut m = json!({
+            "pbrMetallicRoughness": {"baseColorFactor": [albedo[0], albedo[1], albedo[2], 1.0], "metallicFactor": 0.0},
+        });
+        if peak > 0.0 {
+            let factor: Vec<f32> = if peak > 1.0 { emission.iter().map(|e| e / peak).collect() } else { emission.to_vec() };
+            m["emissiveFactor"] = json!(factor);
+            if peak > 1.0 {
+                m["extensions"] = json!({"KHR_materials_emissive_strength": {"emissiveStrength": peak}});
+            }
+        }
+        self.materials.push(m);
+        self.materials.len() - 1
+    }
+
+    /// A one-primitive mesh (no normals: flat normals are computed).
+    pub fn mesh(&mut self, positions: &[[f32; 3]], indices: &[u32], material: Option<usize>) -> usize {
+        let pos = self.vec3(positions);
+        let idx = self.indices(indices);
+        let mut prim = json!({"attributes": {"POSITION": pos}, "indices": idx});
+        if let Some(m) = material {
+            prim["material"] = json!(m);
+        }
+        self.meshes.push(json!({"primitives": [prim]}));
+        self.meshes.len() - 1
+    }
+
+    /// A node placing `mesh`.
+    pub fn node(&mut self, name: &str, mesh: usize) -> usize {
+        self.nodes.push(json!({"name": name, "mesh": mesh}));
+        self.nodes.len() - 1
+    }
+
+    /// The document (every node is a root of scene 0).
+    pub fn json(&self) -> Value {
+        let uri = format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&self.buffer)
+        );
+        let mut extensions_used = Vec::new();
+        if self.materials.iter().any(|m| m.get("extensions").is_some()) {
+            extensions_used.push("KHR_materials_emissive_strength");
+        }
+        json!({
+            "asset": {"version": "2.0", "generator": "radbake tests"},
+            "extensionsUsed": extensions_used,
+            "scene": 0,
+            "scenes": [{"nodes": (0..self.nodes.len()).collect::<Vec<_>>()}],
+            "nodes": self.nodes,
+            "meshes": self.meshes,
+            "materials": self.materials,
+            "accessors": self.accessors,
+            "bufferViews": self.views,
+            "buffers": [{"byteLength": self.buffer.len(), "uri": uri}],
+        })
+    }
+
+    /// Writes the document to `path`.
+    pub fn write(&self, path: &Path) {
+        std::fs::write(path, serde_json::to_vec_pretty(&self.json()).unwrap()).unwrap();
+    }
+}
+
+/// A rectangle spanned from `origin` by edges `u` and `v`, facing `u × v`.
+pub fn quad(origin: [f32; 3], u: [f32; 3], v: [f32; 3]) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let p = |a: f32, b: f32| [0, 1, 2].map(|c| origin[c] + a * u[c] + b * v[c]);
+    (vec![p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)], vec![0, 1, 2, 0, 2, 3])
+}
+
+/// A disk of radius `r` at height `y`, facing ±Y (`up`), as a fan of `n` triangles.
+pub fn disk(r: f32, y: f32, up: bool, n: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let mut p = vec![[0.0, y, 0.0]];
+    for k in 0..n {
+        let a = k as f32 / n as f32 * std::f32::consts::TAU;
+        p.push([r * a.cos(), y, -r * a.sin()]);
+    }
+    let mut idx = Vec::new();
+    for k in 0..n {
+        let (a, b) = (1 + k, 1 + (k + 1) % n);
+        if up {
+            idx.extend([0, a, b]);
+        } else {
+            idx.extend([0, b, a]);
+        }
+    }
+    (p, idx)
+}
+
+/// A UV sphere of radius `r` facing outward (or inward).
+pub fn sphere(r: f32, rings: u32, segments: u32, inward: bool) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let mut p = Vec::new();
+    for i in 0..=rings {
+        let th = i as f32 / rings as f32 * std::f32::consts::PI;
+        for j in 0..=segments {
+            let ph = j as f32 / segments as f32 * std::f32::consts::TAU;
+            p.push([r * th.sin() * ph.cos(), r * th.cos(), -r * th.sin() * ph.sin()]);
+        }
+    }
+    let w = segments + 1;
+    let mut idx = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (i * w + j, i * w + j + 1, (i + 1) * w + j, (i + 1) * w + j + 1);
+            for t in [[a, c, b], [b, c, d]] {
+                // Orient by the centroid: outward unless `inward`.
+                let v = t.map(|k| p[k as usize]);
+                let e1 = [0, 1, 2].map(|c| v[1][c] - v[0][c]);
+                let e2 = [0, 1, 2].map(|c| v[2][c] - v[0][c]);
+                let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+                let out: f32 = (0..3).map(|c| n[c] * (v[0][c] + v[1][c] + v[2][c])).sum();
+                if (out > 0.0) != inward {
+                    idx.extend(t);
+                } else {
+                    idx.extend([t[0], t[2], t[1]]);
+                }
+            }
+        }
+    }
+    (p, idx)
+}
