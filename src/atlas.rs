@@ -83,7 +83,11 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
     }
     let scales: Vec<Vec<f32>> = mesh_instances
         .iter()
-        .map(|list| list.iter().map(|&i| scene.instances[i].uniform_scale()).collect())
+        .map(|list| {
+            list.iter()
+                .map(|&i| scene.instances[i].uniform_scale())
+                .collect()
+        })
         .collect();
 
     // Density: lowered when the surface would need more than max_texels.
@@ -97,7 +101,10 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
                 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length() as f64
             })
             .sum();
-        area += scales[m].iter().map(|s| local * (*s as f64).powi(2)).sum::<f64>();
+        area += scales[m]
+            .iter()
+            .map(|s| local * (*s as f64).powi(2))
+            .sum::<f64>();
     }
     let mut density = config.texels_per_meter;
     // Packing leaves about a third of the atlas empty.
@@ -125,7 +132,11 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
     let uv1: Vec<Option<Vec<[f32; 2]>>> = scene
         .meshes
         .iter()
-        .map(|m| m.uv1.as_ref().map(|u| u.iter().map(|v| v.to_array()).collect()))
+        .map(|m| {
+            m.uv1
+                .as_ref()
+                .map(|u| u.iter().map(|v| v.to_array()).collect())
+        })
         .collect();
     let mut inputs = Vec::with_capacity(scene.meshes.len());
     for (m, mesh) in scene.meshes.iter().enumerate() {
@@ -133,7 +144,10 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
             UvSource::Unwrap => None,
             UvSource::Existing => Some(uv1[m].as_deref().ok_or_else(|| Error::Config {
                 key: "uv".into(),
-                message: format!("`existing` needs TEXCOORD_1, but mesh `{}` has none", mesh.name),
+                message: format!(
+                    "`existing` needs TEXCOORD_1, but mesh `{}` has none",
+                    mesh.name
+                ),
             })?),
         };
         inputs.push(uvunwrap::MeshInput {
@@ -174,8 +188,16 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
         meshes.push(MeshUnwrap {
             xref: om.vertices.iter().map(|v| v.xref).collect(),
             uv: om.vertices.iter().map(|v| Vec2::from(v.uv)).collect(),
-            chart: om.vertices.iter().map(|v| v.chart.unwrap_or(u32::MAX)).collect(),
-            triangles: om.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            chart: om
+                .vertices
+                .iter()
+                .map(|v| v.chart.unwrap_or(u32::MAX))
+                .collect(),
+            triangles: om
+                .indices
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect(),
         });
     }
     Ok(Atlas {
@@ -205,7 +227,8 @@ mod tests {
         };
         for axis in 0..3 {
             for sign in [-1.0f32, 1.0] {
-                let n = Vec3::from_array(std::array::from_fn(|i| if i == axis { sign } else { 0.0 }));
+                let n =
+                    Vec3::from_array(std::array::from_fn(|i| if i == axis { sign } else { 0.0 }));
                 let (t, b) = crate::sampling::frame(n);
                 let base = m.positions.len() as u32;
                 for (u, v) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
@@ -244,7 +267,10 @@ mod tests {
         };
         let atlas = unwrap(&scene, &config).unwrap();
         let mu = &atlas.meshes[0];
-        assert!(mu.uv.iter().all(|uv| (0.0..=1.0).contains(&uv.x) && (0.0..=1.0).contains(&uv.y)));
+        assert!(mu
+            .uv
+            .iter()
+            .all(|uv| (0.0..=1.0).contains(&uv.x) && (0.0..=1.0).contains(&uv.y)));
         for (a, ra) in atlas.instances.iter().enumerate() {
             assert!(ra.max[0] > ra.min[0] && ra.max[1] > ra.min[1]);
             for rb in atlas.instances.iter().skip(a + 1) {

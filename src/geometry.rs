@@ -56,9 +56,12 @@ impl Geometry {
                     }
                     let src = mesh.triangles[t];
                     let p = order.map(|k| m.transform_point3(mesh.positions[src[k] as usize]));
-                    let n = order.map(|k| (nm * mesh.normals[src[k] as usize]).normalize_or(Vec3::Y));
+                    let n =
+                        order.map(|k| (nm * mesh.normals[src[k] as usize]).normalize_or(Vec3::Y));
                     let uv0 = order.map(|k| mesh.uv0[src[k] as usize]);
-                    let lm = order.map(|k| rect.to_texels(unwrap.uv[out_tri[k] as usize], atlas.width, atlas.height));
+                    let lm = order.map(|k| {
+                        rect.to_texels(unwrap.uv[out_tri[k] as usize], atlas.width, atlas.height)
+                    });
                     let cross = (p[1] - p[0]).cross(p[2] - p[0]);
                     g.instance.push(i as u32);
                     g.p_ws.push(p);

@@ -107,11 +107,16 @@ impl<'a> Timer<'a> {
 /// # Errors
 /// [`Error::Config`] for settings out of range, [`Error::Unwrap`] when the
 /// atlas can't be built.
-pub fn bake<'s>(scene: &'s Scene, config: &BakeConfig, progress: &dyn Progress) -> Result<Bake<'s>> {
+pub fn bake<'s>(
+    scene: &'s Scene,
+    config: &BakeConfig,
+    progress: &dyn Progress,
+) -> Result<Bake<'s>> {
     config.validate()?;
     let mut warnings = scene.warnings.clone();
     if !scene.has_emitters() {
-        warnings.push("the scene has no emissive surface and no light: the lightmaps are black".into());
+        warnings
+            .push("the scene has no emissive surface and no light: the lightmaps are black".into());
     }
     let mut timer = Timer {
         stages: Vec::new(),
@@ -146,7 +151,8 @@ pub fn bake<'s>(scene: &'s Scene, config: &BakeConfig, progress: &dyn Progress) 
     };
     timer.begin("form_factors", patches.len() as u64);
     let advance = |n| progress.advance(n);
-    let form_factors = form_factors::raycast::compute(&surfaces, config.rays_per_patch, config.seed, &advance);
+    let form_factors =
+        form_factors::raycast::compute(&surfaces, config.rays_per_patch, config.seed, &advance);
     timer.end("form_factors");
 
     timer.begin("solve", config.max_iterations as u64);
@@ -169,7 +175,13 @@ pub fn bake<'s>(scene: &'s Scene, config: &BakeConfig, progress: &dyn Progress) 
     timer.end("solve");
 
     timer.begin("lightmaps", 0);
-    let lightmaps = lightmap::build(&texels, &patches, &solution, atlas.page_count, 2 * config.padding);
+    let lightmaps = lightmap::build(
+        &texels,
+        &patches,
+        &solution,
+        atlas.page_count,
+        2 * config.padding,
+    );
     timer.end("lightmaps");
 
     Ok(Bake {
@@ -215,7 +227,13 @@ impl Bake<'_> {
                     mesh: self.scene.meshes[inst.mesh as usize].name.clone(),
                     area: area[i],
                     texels: count[i],
-                    mean: std::array::from_fn(|c| if area[i] > 0.0 { (sum[i][c] / area[i]) as f32 } else { 0.0 }),
+                    mean: std::array::from_fn(|c| {
+                        if area[i] > 0.0 {
+                            (sum[i][c] / area[i]) as f32
+                        } else {
+                            0.0
+                        }
+                    }),
                     page: r.page,
                     uv_rect: [r.min[0], r.min[1], r.max[0], r.max[1]],
                 }
@@ -230,12 +248,12 @@ impl Bake<'_> {
         let rows = self.form_factors.row_sums();
         let pi = std::f64::consts::PI;
         let mut e = Energy::default();
-        for i in 0..p.len() {
+        for (i, row_sum) in rows.iter().enumerate() {
             let a = p.area[i] as f64;
             for c in 0..3 {
                 e.emitted[c] += pi * a * p.emission[i][c] as f64;
                 e.absorbed[c] += pi * a * (1.0 - p.albedo[i][c] as f64) * s.irradiance[i][c] as f64;
-                e.escaped[c] += pi * a * s.radiance[i][c] as f64 * (1.0 - rows[i] as f64);
+                e.escaped[c] += pi * a * s.radiance[i][c] as f64 * (1.0 - *row_sum as f64);
             }
         }
         for c in 0..3 {

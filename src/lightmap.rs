@@ -78,7 +78,8 @@ pub fn dilate(values: &mut [Vec3], filled: &mut [bool], width: u32, height: u32,
                 for dy in -1..=1 {
                     for dx in -1..=1 {
                         let (nx, ny) = (x + dx, y + dy);
-                        if nx >= 0 && ny >= 0 && nx < w && ny < h && filled[(ny * w + nx) as usize] {
+                        if nx >= 0 && ny >= 0 && nx < w && ny < h && filled[(ny * w + nx) as usize]
+                        {
                             acc += values[(ny * w + nx) as usize];
                             n += 1;
                         }
@@ -100,7 +101,13 @@ pub fn dilate(values: &mut [Vec3], filled: &mut [bool], width: u32, height: u32,
 }
 
 /// Builds the pages: interpolated texel values, then `dilate_rings` of dilation.
-pub fn build(texels: &Texels, patches: &Patches, solution: &Solution, page_count: u32, dilate_rings: u32) -> Lightmaps {
+pub fn build(
+    texels: &Texels,
+    patches: &Patches,
+    solution: &Solution,
+    page_count: u32,
+    dilate_rings: u32,
+) -> Lightmaps {
     let texel_values = interpolate(texels, patches, solution);
     let (w, h) = (texels.width, texels.height);
     let pages = (0..page_count.max(1))

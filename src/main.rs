@@ -15,7 +15,11 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "radbake", version, about = "Radiosity lightmap baker for glTF 2.0 scenes")]
+#[command(
+    name = "radbake",
+    version,
+    about = "Radiosity lightmap baker for glTF 2.0 scenes"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -79,7 +83,8 @@ impl BakeArgs {
     fn config(&self) -> anyhow::Result<BakeConfig> {
         let mut c = match &self.config {
             Some(path) => {
-                let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
+                let text =
+                    std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
                 BakeConfig::from_toml(&text)?
             }
             None => BakeConfig::default(),
@@ -87,7 +92,19 @@ impl BakeArgs {
         macro_rules! set {
             ($($f:ident),*) => { $( if let Some(v) = self.$f { c.$f = v; } )* };
         }
-        set!(texels_per_meter, padding, patch_texels, rays_per_patch, tolerance, max_iterations, uv, form_factors, solver, seed, max_texels);
+        set!(
+            texels_per_meter,
+            padding,
+            patch_texels,
+            rays_per_patch,
+            tolerance,
+            max_iterations,
+            uv,
+            form_factors,
+            solver,
+            seed,
+            max_texels
+        );
         c.validate()?;
         Ok(c)
     }
@@ -103,12 +120,17 @@ impl radbake::Progress for Bars {
     fn begin(&self, stage: &str, total: u64) {
         let bar = if total > 0 {
             ProgressBar::new(total).with_style(
-                ProgressStyle::with_template("{msg:>13} [{bar:30}] {pos}/{len} {elapsed} (eta {eta})")
-                    .expect("static template")
-                    .progress_chars("=> "),
+                ProgressStyle::with_template(
+                    "{msg:>13} [{bar:30}] {pos}/{len} {elapsed} (eta {eta})",
+                )
+                .expect("static template")
+                .progress_chars("=> "),
             )
         } else {
-            ProgressBar::new_spinner().with_style(ProgressStyle::with_template("{msg:>13} {spinner} {elapsed}").expect("static template"))
+            ProgressBar::new_spinner().with_style(
+                ProgressStyle::with_template("{msg:>13} {spinner} {elapsed}")
+                    .expect("static template"),
+            )
         };
         if self.hidden {
             bar.set_draw_target(ProgressDrawTarget::hidden());
@@ -131,7 +153,9 @@ impl radbake::Progress for Bars {
 }
 
 fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
-    let config = args.config().map_err(|e| (classify(&e), format!("{e:#}")))?;
+    let config = args
+        .config()
+        .map_err(|e| (classify(&e), format!("{e:#}")))?;
     let start = Instant::now();
     let scene = radbake::scene::load(&args.scene, &Default::default()).map_err(lib_err)?;
     let import = StageTime {
@@ -146,7 +170,8 @@ fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
     let mut report = bake.report(&args.scene.display().to_string());
     report.stages.insert(0, import);
     let t = Instant::now();
-    let mut written = radbake::output::write_lightmaps(&args.out, &bake.lightmaps).map_err(lib_err)?;
+    let mut written =
+        radbake::output::write_lightmaps(&args.out, &bake.lightmaps).map_err(lib_err)?;
     report.stages.push(StageTime {
         stage: "write".into(),
         seconds: t.elapsed().as_secs_f64(),
@@ -201,7 +226,10 @@ fn main() -> ExitCode {
             .map(|s| s.to_string())
             .or_else(|| info.payload().downcast_ref::<String>().cloned())
             .unwrap_or_default();
-        let at = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
         eprintln!("error: internal error (a bug in radbake){at}: {msg}");
     }));
     let result = std::panic::catch_unwind(|| match &cli.command {

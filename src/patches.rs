@@ -108,7 +108,8 @@ pub fn build(texels: &Texels, k: u32) -> Patches {
         by_key,
     };
     for i in 0..n {
-        let (mut a, mut p, mut nrm, mut rho, mut e) = (0.0f32, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+        let (mut a, mut p, mut nrm, mut rho, mut e) =
+            (0.0f32, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
         for &t in patches.texels_of(i) {
             let t = t as usize;
             let w = texels.area[t];

@@ -40,7 +40,12 @@ impl Tri {
         let v0 = Vec3A::from(p[0]);
         let e1 = v0 - Vec3A::from(p[1]);
         let e2 = Vec3A::from(p[2]) - v0;
-        Tri { v0, e1, e2, n: e1.cross(e2) }
+        Tri {
+            v0,
+            e1,
+            e2,
+            n: e1.cross(e2),
+        }
     }
 
     /// (t, u, v) of the hit, with hit = (1−u−v)·p0 + u·p1 + v·p2, or None.
@@ -63,11 +68,15 @@ impl Tri {
     }
 }
 
+/// One masked material's alpha: (texture slot in `Cutouts::textures` and
+/// its transform), alpha factor, cutoff.
+type AlphaMask = (Option<(usize, TextureRef)>, f32, f32);
+
 /// Base colour alpha of the masked materials, for the any-hit test.
 #[derive(Clone, Debug, Default)]
 struct Cutouts {
-    /// Per material: (texture slot in `textures`, its transform, alpha factor, cutoff).
-    materials: Vec<Option<(Option<(usize, TextureRef)>, f32, f32)>>,
+    /// Per material, `None` when opaque.
+    materials: Vec<Option<AlphaMask>>,
     textures: Vec<Texture>,
 }
 
@@ -134,7 +143,10 @@ impl RayCaster {
         );
         let cutouts = Cutouts::new(scene);
         let ids: Vec<u32> = bvh.primitive_indices.clone();
-        let ordered: Vec<Tri> = ids.iter().map(|&g| Tri::new(&geometry.p_ws[g as usize])).collect();
+        let ordered: Vec<Tri> = ids
+            .iter()
+            .map(|&g| Tri::new(&geometry.p_ws[g as usize]))
+            .collect();
         let masked_material = ids
             .iter()
             .map(|&g| {
@@ -176,15 +188,17 @@ impl RayCaster {
         let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
         let mut hit = obvhs::ray::RayHit::none();
         let mut uv = (0.0f32, 0.0f32);
-        let found = self.bvh.ray_traverse(ray, &mut hit, |r, k| match self.test(k, r) {
-            Some((t, u, v)) => {
-                if t < r.tmax {
-                    uv = (u, v);
+        let found = self
+            .bvh
+            .ray_traverse(ray, &mut hit, |r, k| match self.test(k, r) {
+                Some((t, u, v)) => {
+                    if t < r.tmax {
+                        uv = (u, v);
+                    }
+                    t
                 }
-                t
-            }
-            None => f32::INFINITY,
-        });
+                None => f32::INFINITY,
+            });
         found.then(|| Hit {
             tri: self.ids[hit.primitive_id as usize],
             t: hit.t,
@@ -221,7 +235,8 @@ mod tests {
         let mut g = Geometry::default();
         for _ in 0..n {
             let c = Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) * 10.0;
-            let p = [0, 1, 2].map(|_| c + Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) - 0.5);
+            let p =
+                [0, 1, 2].map(|_| c + Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) - 0.5);
             g.instance.push(0);
             g.p_ws.push(p);
             g.n_ws.push([Vec3::Z; 3]);

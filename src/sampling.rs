@@ -145,7 +145,11 @@ mod tests {
             m1 += d.z as f64;
             m2 += (d.z * d.z) as f64;
         }
-        assert!((m1 / n as f64 - 2.0 / 3.0).abs() < 1e-3, "{}", m1 / n as f64);
+        assert!(
+            (m1 / n as f64 - 2.0 / 3.0).abs() < 1e-3,
+            "{}",
+            m1 / n as f64
+        );
         assert!((m2 / n as f64 - 0.5).abs() < 1e-3, "{}", m2 / n as f64);
     }
 
@@ -165,7 +169,10 @@ mod tests {
     fn streams_are_reproducible() {
         let a: Vec<f32> = (0..4).map(|_| Stream::new(1, 2, 3).next_f32()).collect();
         assert!(a.iter().all(|&x| x == a[0]));
-        assert_ne!(Stream::new(1, 2, 3).next_f32(), Stream::new(1, 2, 4).next_f32());
+        assert_ne!(
+            Stream::new(1, 2, 3).next_f32(),
+            Stream::new(1, 2, 4).next_f32()
+        );
     }
 
     #[test]

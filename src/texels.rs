@@ -103,7 +103,12 @@ fn clip_to_texel(t: &[Vec2; 3], x: f32, y: f32) -> Option<(f32, Vec2)> {
     let mut poly: Vec<Vec2> = t.to_vec();
     let mut next: Vec<Vec2> = Vec::with_capacity(8);
     // Four half-planes: x ≥ x0, x ≤ x0+1, y ≥ y0, y ≤ y0+1.
-    let planes: [(usize, f32, f32); 4] = [(0, x, 1.0), (0, x + 1.0, -1.0), (1, y, 1.0), (1, y + 1.0, -1.0)];
+    let planes: [(usize, f32, f32); 4] = [
+        (0, x, 1.0),
+        (0, x + 1.0, -1.0),
+        (1, y, 1.0),
+        (1, y + 1.0, -1.0),
+    ];
     for (axis, bound, sign) in planes {
         next.clear();
         let inside = |p: Vec2| (p[axis] - bound) * sign >= 0.0;
@@ -171,7 +176,9 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
         }
         r.1 = t + 1;
     }
-    let per_instance: Vec<(Vec<(u32, u32, Accum)>, u64, u64)> = ranges
+    // Per instance: covered cells (x, y, sums), unmapped triangles, overlaps.
+    type InstanceCells = (Vec<(u32, u32, Accum)>, u64, u64);
+    let per_instance: Vec<InstanceCells> = ranges
         .par_iter()
         .enumerate()
         .map(|(inst, &(start, end))| {
@@ -272,7 +279,8 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
             tx.chart.push(c.chart);
             tx.triangle.push(c.tri);
             tx.p_ws.push(c.p / c.area);
-            tx.n_ws.push(c.n.normalize_or(geometry.ng_ws[c.tri as usize]));
+            tx.n_ws
+                .push(c.n.normalize_or(geometry.ng_ws[c.tri as usize]));
             tx.area.push(c.area);
             tx.albedo.push(c.albedo / c.area);
             tx.emission.push(c.emission / c.area);
@@ -287,11 +295,19 @@ mod tests {
 
     #[test]
     fn clip_full_and_partial() {
-        let big = [Vec2::new(-10.0, -10.0), Vec2::new(10.0, -10.0), Vec2::new(0.0, 10.0)];
+        let big = [
+            Vec2::new(-10.0, -10.0),
+            Vec2::new(10.0, -10.0),
+            Vec2::new(0.0, 10.0),
+        ];
         let (a, c) = clip_to_texel(&big, 0.0, 0.0).unwrap();
         assert!((a - 1.0).abs() < 1e-5 && (c - Vec2::splat(0.5)).length() < 1e-5);
         // Lower-left half of the texel.
-        let half = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)];
+        let half = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(0.0, 1.0),
+        ];
         let (a, c) = clip_to_texel(&half, 0.0, 0.0).unwrap();
         assert!((a - 0.5).abs() < 1e-6 && (c - Vec2::splat(1.0 / 3.0)).length() < 1e-5);
         assert!(clip_to_texel(&half, 3.0, 3.0).is_none());
@@ -301,7 +317,11 @@ mod tests {
     /// and their clipped areas add up to its own.
     #[test]
     fn coverage_sums_to_triangle_area() {
-        let t = [Vec2::new(0.3, 0.2), Vec2::new(7.9, 0.35), Vec2::new(4.1, 0.5)];
+        let t = [
+            Vec2::new(0.3, 0.2),
+            Vec2::new(7.9, 0.35),
+            Vec2::new(4.1, 0.5),
+        ];
         let area = 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]).abs();
         let mut sum = 0.0;
         for y in 0..2 {
@@ -316,7 +336,11 @@ mod tests {
 
     #[test]
     fn barycentric_of_vertices() {
-        let t = [Vec2::new(0.0, 0.0), Vec2::new(2.0, 0.0), Vec2::new(0.0, 3.0)];
+        let t = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(2.0, 0.0),
+            Vec2::new(0.0, 3.0),
+        ];
         assert!((barycentric(&t, t[1]) - Vec3::new(0.0, 1.0, 0.0)).length() < 1e-6);
         assert!((barycentric(&t, t[2]) - Vec3::new(0.0, 0.0, 1.0)).length() < 1e-6);
     }

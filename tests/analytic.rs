@@ -15,7 +15,10 @@ fn load(path: &std::path::Path) -> radbake::scene::Scene {
 
 fn instance_mean(bake: &radbake::Bake, node: &str) -> f32 {
     let r = bake.instance_reports();
-    let i = r.iter().find(|i| i.node == node).unwrap_or_else(|| panic!("no instance {node}"));
+    let i = r
+        .iter()
+        .find(|i| i.node == node)
+        .unwrap_or_else(|| panic!("no instance {node}"));
     assert!(i.texels > 0, "{node} has no texels");
     // Grey scenes: all channels equal.
     assert!((i.mean[0] - i.mean[1]).abs() < 1e-6 && (i.mean[1] - i.mean[2]).abs() < 1e-6);
@@ -32,7 +35,9 @@ fn rel_err(got: f64, want: f64) -> f64 {
 fn furnace_box_every_texel_is_two() {
     let scene = load(&scene_path("furnace_box.gltf"));
     let bake = radbake::bake(&scene, &BakeConfig::default(), &Silent).unwrap();
-    let want = expected()["furnace_box.gltf"]["lightmap_everywhere"].as_f64().unwrap() as f32;
+    let want = expected()["furnace_box.gltf"]["lightmap_everywhere"]
+        .as_f64()
+        .unwrap() as f32;
     let mut worst = 0.0f32;
     for v in &bake.lightmaps.texel_values {
         for c in 0..3 {
@@ -44,7 +49,10 @@ fn furnace_box_every_texel_is_two() {
     for (i, s) in bake.form_factors.row_sums().iter().enumerate() {
         assert!((s - 1.0).abs() < 1e-4, "row {i} sums to {s}");
     }
-    assert_eq!(bake.form_factors.stats.escaped + bake.form_factors.stats.unmapped, 0);
+    assert_eq!(
+        bake.form_factors.stats.escaped + bake.form_factors.stats.unmapped,
+        0
+    );
 }
 
 /// Howell C-11: receiver mean = F = 0.199825 within 2 %.
@@ -52,12 +60,21 @@ fn furnace_box_every_texel_is_two() {
 fn parallel_plates_receiver_mean() {
     let scene = load(&scene_path("parallel_plates.gltf"));
     let bake = radbake::bake(&scene, &BakeConfig::default(), &Silent).unwrap();
-    let want = expected()["parallel_plates.gltf"]["receiver_area_mean"].as_f64().unwrap();
+    let want = expected()["parallel_plates.gltf"]["receiver_area_mean"]
+        .as_f64()
+        .unwrap();
     let got = instance_mean(&bake, "receiver") as f64;
-    assert!(rel_err(got, want) < 0.02, "receiver mean {got}, Howell {want}");
+    assert!(
+        rel_err(got, want) < 0.02,
+        "receiver mean {got}, Howell {want}"
+    );
     assert!((want - analytic::parallel_rectangles(1.0, 1.0, 1.0)).abs() < 1e-9);
     // CSR rows sum to at most 1 (+ rounding).
-    assert!(bake.form_factors.row_sums().iter().all(|&s| s <= 1.0 + 1e-5));
+    assert!(bake
+        .form_factors
+        .row_sums()
+        .iter()
+        .all(|&s| s <= 1.0 + 1e-5));
 }
 
 /// Howell C-14: receiver mean = F = 0.200044 within 2 %.
@@ -65,9 +82,14 @@ fn parallel_plates_receiver_mean() {
 fn perpendicular_plates_receiver_mean() {
     let scene = load(&scene_path("perpendicular_plates.gltf"));
     let bake = radbake::bake(&scene, &BakeConfig::default(), &Silent).unwrap();
-    let want = expected()["perpendicular_plates.gltf"]["receiver_area_mean"].as_f64().unwrap();
+    let want = expected()["perpendicular_plates.gltf"]["receiver_area_mean"]
+        .as_f64()
+        .unwrap();
     let got = instance_mean(&bake, "receiver") as f64;
-    assert!(rel_err(got, want) < 0.02, "receiver mean {got}, Howell {want}");
+    assert!(
+        rel_err(got, want) < 0.02,
+        "receiver mean {got}, Howell {want}"
+    );
     assert!((want - analytic::perpendicular_rectangles(1.0, 1.0, 1.0)).abs() < 1e-9);
 }
 
@@ -101,11 +123,17 @@ fn unequal_rectangles() {
 
     let parallel = analytic::parallel_rectangles(2.0, 1.0, 0.5);
     let got = instance_mean(&bake, "receiver") as f64;
-    assert!(rel_err(got, parallel) < 0.02, "parallel receiver {got}, Howell {parallel}");
+    assert!(
+        rel_err(got, parallel) < 0.02,
+        "parallel receiver {got}, Howell {parallel}"
+    );
     // F(floor → wall): the floor is `w` = 1.5 wide, the wall `h` = 0.5, common edge 1.
     let perpendicular = analytic::perpendicular_rectangles(1.0, 1.5, 0.5);
     let got = instance_mean(&bake, "floor") as f64;
-    assert!(rel_err(got, perpendicular) < 0.02, "floor {got}, Howell {perpendicular}");
+    assert!(
+        rel_err(got, perpendicular) < 0.02,
+        "floor {got}, Howell {perpendicular}"
+    );
 }
 
 /// Coaxial disks (Howell C-41): emitter r = 0.5 m at 1 m above a receiver of
@@ -127,7 +155,10 @@ fn coaxial_disks() {
     let scene = load(&path);
     let bake = radbake::bake(&scene, &BakeConfig::default(), &Silent).unwrap();
     // Polygonal disks: use their true area-equivalent radii.
-    let polygon_radius = |r: f64| r * ((96.0 / (2.0 * std::f64::consts::PI)) * (2.0 * std::f64::consts::PI / 96.0).sin()).sqrt();
+    let polygon_radius = |r: f64| {
+        r * ((96.0 / (2.0 * std::f64::consts::PI)) * (2.0 * std::f64::consts::PI / 96.0).sin())
+            .sqrt()
+    };
     let want = analytic::coaxial_disks(polygon_radius(0.75), polygon_radius(0.5), 1.0);
     let got = instance_mean(&bake, "receiver") as f64;
     assert!(rel_err(got, want) < 0.02, "receiver {got}, Howell {want}");
@@ -146,7 +177,10 @@ fn sphere_furnace() {
     let path = dir.join("sphere.gltf");
     b.write(&path);
     let scene = load(&path);
-    assert!(scene.stats.degenerate_triangles > 0, "pole triangles are degenerate and dropped");
+    assert!(
+        scene.stats.degenerate_triangles > 0,
+        "pole triangles are degenerate and dropped"
+    );
     let config = BakeConfig {
         texels_per_meter: 40.0,
         ..BakeConfig::default()
@@ -176,21 +210,39 @@ fn cornell_box_sane() {
     assert_eq!(reports.len(), 8);
     for r in &reports {
         assert!(r.texels > 100, "{} has {} texels", r.node, r.texels);
-        assert!(r.mean.iter().all(|&m| m.is_finite() && m > 0.0), "{}: {:?}", r.node, r.mean);
+        assert!(
+            r.mean.iter().all(|&m| m.is_finite() && m > 0.0),
+            "{}: {:?}",
+            r.node,
+            r.mean
+        );
     }
     assert_eq!(bake.texels.chart_overlaps, 0);
     assert_eq!(bake.texels.unmapped_triangles, 0);
     assert_eq!(bake.form_factors.stats.unmapped, 0);
-    assert!(bake.lightmaps.pages[0].iter().all(|v| v.is_finite() && v.min_element() >= 0.0));
-    let emitters: Vec<_> = bake.patches.emission.iter().filter(|e| e.max_element() > 0.0).collect();
+    assert!(bake.lightmaps.pages[0]
+        .iter()
+        .all(|v| v.is_finite() && v.min_element() >= 0.0));
+    let emitters: Vec<_> = bake
+        .patches
+        .emission
+        .iter()
+        .filter(|e| e.max_element() > 0.0)
+        .collect();
     assert!(!emitters.is_empty());
     for e in emitters {
-        assert!((e.x - 17.0).abs() < 1e-3 && (e.y - 12.0).abs() < 1e-3 && (e.z - 4.0).abs() < 1e-3, "{e}");
+        assert!(
+            (e.x - 17.0).abs() < 1e-3 && (e.y - 12.0).abs() < 1e-3 && (e.z - 4.0).abs() < 1e-3,
+            "{e}"
+        );
     }
     let energy = bake.energy();
     for c in 0..3 {
         assert!(energy.relative_imbalance[c].abs() < 0.01, "{energy:?}");
-        assert!(energy.escaped[c] > 0.05 * energy.emitted[c], "the open front lets light out");
+        assert!(
+            energy.escaped[c] > 0.05 * energy.emitted[c],
+            "the open front lets light out"
+        );
     }
     // Reciprocity between instances: A_I F_IJ = A_J F_JI within 3 % where F_IJ > 0.05.
     let p = &bake.patches;
@@ -206,7 +258,14 @@ fn cornell_box_sane() {
         for b in a + 1..n {
             if af[a][b] > 0.05 * reports[a].area {
                 let err = (af[a][b] - af[b][a]).abs() / af[a][b];
-                assert!(err < 0.03, "{} / {}: {} vs {}", reports[a].node, reports[b].node, af[a][b], af[b][a]);
+                assert!(
+                    err < 0.03,
+                    "{} / {}: {} vs {}",
+                    reports[a].node,
+                    reports[b].node,
+                    af[a][b],
+                    af[b][a]
+                );
                 checked += 1;
             }
         }
@@ -219,7 +278,10 @@ fn cornell_box_sane() {
 fn deterministic_across_thread_counts() {
     let scene = load(&scene_path("cornell_box.gltf"));
     let run = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(|| {
             let b = radbake::bake(&scene, &BakeConfig::default(), &Silent).unwrap();
             b.lightmaps.pages.clone()

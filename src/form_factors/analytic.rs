@@ -45,9 +45,8 @@ pub fn point_to_rectangle_corner(x: f64, y: f64, d: f64) -> f64 {
 /// `[0, a] × [0, b]` at distance `d`: B-3 summed over the four rectangles
 /// around the foot of the normal (points outside handled by signs).
 pub fn point_to_rectangle(px: f64, py: f64, a: f64, b: f64, d: f64) -> f64 {
-    let f = |x: f64, y: f64| {
-        x.signum() * y.signum() * point_to_rectangle_corner(x.abs(), y.abs(), d)
-    };
+    let f =
+        |x: f64, y: f64| x.signum() * y.signum() * point_to_rectangle_corner(x.abs(), y.abs(), d);
     f(a - px, b - py) - f(-px, b - py) - f(a - px, -py) + f(-px, -py)
 }
 

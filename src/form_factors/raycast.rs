@@ -76,7 +76,10 @@ impl Surfaces<'_> {
         // through the crack between them.
         let w = barycentric(&self.geometry.uv_lm[tri as usize], q).max(glam::Vec3::splat(1e-4));
         let w = w / w.element_sum();
-        (self.geometry.point(tri, w.y, w.z), self.geometry.ng_ws[tri as usize])
+        (
+            self.geometry.point(tri, w.y, w.z),
+            self.geometry.ng_ws[tri as usize],
+        )
     }
 
     /// Where a ray from `origin` along `dir` lands.
@@ -91,7 +94,10 @@ impl Surfaces<'_> {
             return (Landing::BackFace, Some(hit));
         }
         let uv_lm = g.uv_lm_at(hit.tri, hit.u, hit.v);
-        match self.texels.lookup(g.page[tri], uv_lm, g.instance[tri], g.chart[tri]) {
+        match self
+            .texels
+            .lookup(g.page[tri], uv_lm, g.instance[tri], g.chart[tri])
+        {
             Some(t) => (Landing::Texel(t), Some(hit)),
             None => (Landing::Unmapped, Some(hit)),
         }
@@ -143,7 +149,10 @@ pub fn row(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> (Vec<(u32, f32)>, 
     for k in 0..n_rays {
         let area_u = area_strata[k as usize] as f32 + rng.next_f32();
         let (p, ng) = s.sample_patch(i, area_u / n_rays as f32, rng.next_vec2());
-        let dir = to_world(cosine_hemisphere(stratified(k, n_rays, rng.next_vec2())), ng);
+        let dir = to_world(
+            cosine_hemisphere(stratified(k, n_rays, rng.next_vec2())),
+            ng,
+        );
         match s.trace(offset_ray_origin(p, ng), dir).0 {
             Landing::Texel(t) => hits.push(s.patches.of_texel[t as usize].0),
             Landing::BackFace => stats.back_faces += 1,

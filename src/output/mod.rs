@@ -15,18 +15,32 @@ use std::path::{Path, PathBuf};
 /// # Errors
 /// [`Error::Io`] on any file-system failure; whatever `write` returns.
 pub fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
-    let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_default();
     // Keep the extension last: some encoders pick the format from it.
     let tmp = dir.join(format!(".{name}.{}.tmp.{ext}", std::process::id()));
-    let io = |source| Error::Io { path: tmp.clone(), source };
+    let io = |source| Error::Io {
+        path: tmp.clone(),
+        source,
+    };
     let result = write(&tmp).and_then(|_| {
-        std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(|source| Error::Io { path: path.to_path_buf(), source })
+        std::fs::File::open(&tmp)
+            .and_then(|f| f.sync_all())
+            .map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })
     });
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
@@ -40,7 +54,10 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Res
 /// [`Error::Io`].
 pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic(path, |tmp| {
-        std::fs::write(tmp, bytes).map_err(|source| Error::Io { path: tmp.to_path_buf(), source })
+        std::fs::write(tmp, bytes).map_err(|source| Error::Io {
+            path: tmp.to_path_buf(),
+            source,
+        })
     })
 }
 
@@ -56,7 +73,10 @@ pub fn write_exr(path: &Path, lightmaps: &Lightmaps, page: usize) -> Result<()> 
             let v = values[y * w + x];
             (v.x, v.y, v.z)
         })
-        .map_err(|e| Error::Encode { path: path.to_path_buf(), message: e.to_string() })
+        .map_err(|e| Error::Encode {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })
     })
 }
 
@@ -74,7 +94,10 @@ pub fn write_preview_png(path: &Path, lightmaps: &Lightmaps, page: usize) -> Res
     });
     write_atomic(path, |tmp| {
         img.save_with_format(tmp, image::ImageFormat::Png)
-            .map_err(|e| Error::Encode { path: path.to_path_buf(), message: e.to_string() })
+            .map_err(|e| Error::Encode {
+                path: path.to_path_buf(),
+                message: e.to_string(),
+            })
     })
 }
 
@@ -84,7 +107,10 @@ pub fn write_preview_png(path: &Path, lightmaps: &Lightmaps, page: usize) -> Res
 /// # Errors
 /// [`Error::Io`] / [`Error::Encode`].
 pub fn write_lightmaps(out_dir: &Path, lightmaps: &Lightmaps) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io { path: out_dir.to_path_buf(), source })?;
+    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io {
+        path: out_dir.to_path_buf(),
+        source,
+    })?;
     let mut written = Vec::new();
     for page in 0..lightmaps.pages.len() {
         let exr = out_dir.join(format!("lightmap_{page}.exr"));
@@ -103,9 +129,15 @@ pub fn write_lightmaps(out_dir: &Path, lightmaps: &Lightmaps) -> Result<Vec<Path
 /// # Errors
 /// [`Error::Io`] / [`Error::Encode`].
 pub fn write_report(out_dir: &Path, report: &Report) -> Result<PathBuf> {
-    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io { path: out_dir.to_path_buf(), source })?;
+    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io {
+        path: out_dir.to_path_buf(),
+        source,
+    })?;
     let json = out_dir.join("report.json");
-    let text = serde_json::to_vec_pretty(report).map_err(|e| Error::Encode { path: json.clone(), message: e.to_string() })?;
+    let text = serde_json::to_vec_pretty(report).map_err(|e| Error::Encode {
+        path: json.clone(),
+        message: e.to_string(),
+    })?;
     write_bytes_atomic(&json, &text)?;
     Ok(json)
 }

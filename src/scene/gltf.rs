@@ -9,9 +9,7 @@
 //! fans), degenerate triangles dropped and counted.
 
 use super::texture::{Texture, TextureRef, Wrap};
-use super::{
-    Alpha, Camera, ImportStats, Instance, Light, LightKind, Material, Mesh, Scene,
-};
+use super::{Alpha, Camera, ImportStats, Instance, Light, LightKind, Material, Mesh, Scene};
 use crate::error::{Error, Result};
 use base64::Engine as _;
 use glam::{Mat4, Vec2, Vec3};
@@ -74,9 +72,8 @@ impl Ctx<'_> {
                 ),
             ));
         }
-        std::fs::read(file).map_err(|e| {
-            self.invalid(location, format!("cannot read `{}`: {e}", file.display()))
-        })
+        std::fs::read(file)
+            .map_err(|e| self.invalid(location, format!("cannot read `{}`: {e}", file.display())))
     }
 
     /// Resolves a relative URI against the scene folder, refusing absolute
@@ -104,10 +101,9 @@ impl Ctx<'_> {
                 _ => depth = -1,
             }
             if depth < 0 {
-                return Err(self.invalid(
-                    location,
-                    format!("URI `{uri}` leaves the scene's folder"),
-                ));
+                return Err(
+                    self.invalid(location, format!("URI `{uri}` leaves the scene's folder"))
+                );
             }
         }
         let joined = self.base_dir.join(rel);
@@ -147,7 +143,7 @@ impl Ctx<'_> {
 /// Loads a `.gltf` or `.glb` file into a [`Scene`].
 ///
 /// # Errors
-/// [`Error::Io`] if the file can't be read, [`Error::Parse`] if it isn't valid
+/// [`Error::Parse`] if the file can't be read or isn't valid
 /// glTF (including unsupported required extensions), [`Error::Invalid`] naming
 /// the glTF path of bad data, [`Error::Empty`] if it has no triangles.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
@@ -161,10 +157,17 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
         base_dir,
         options,
     };
-    let meta = std::fs::metadata(path).map_err(|source| Error::Io {
+    let unreadable = |e: std::io::Error| Error::Parse {
         path: path.to_path_buf(),
-        source,
-    })?;
+        message: format!("cannot read the file: {e}"),
+    };
+    let meta = std::fs::metadata(path).map_err(unreadable)?;
+    if meta.is_dir() {
+        return Err(Error::Parse {
+            path: path.to_path_buf(),
+            message: "is a folder, not a .gltf or .glb file".into(),
+        });
+    }
     if meta.len() > options.max_file_bytes {
         return Err(Error::Limit(format!(
             "{}: {} bytes is over the {} byte file limit",
@@ -173,10 +176,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             options.max_file_bytes
         )));
     }
-    let bytes = std::fs::read(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = std::fs::read(path).map_err(unreadable)?;
     if bytes.is_empty() {
         return Err(Error::Parse {
             path: path.to_path_buf(),
@@ -185,7 +185,11 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
     }
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| Error::Parse {
         path: path.to_path_buf(),
-        message: e.to_string(),
+        message: if bytes.starts_with(b"glTF") {
+            format!("malformed or truncated GLB ({} bytes): {e}", bytes.len())
+        } else {
+            e.to_string()
+        },
     })?;
     let buffers = load_buffers(&ctx, &gltf)?;
     check_accessors(&ctx, &gltf.document, &buffers)?;
@@ -222,10 +226,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
     while let Some((node, parent, depth)) = stack.pop() {
         let location = format!("nodes[{}]", node.index());
         if depth > MAX_NODE_DEPTH {
-            return Err(ctx.invalid(
-                location,
-                "node hierarchy deeper than 256 levels (a cycle?)",
-            ));
+            return Err(ctx.invalid(location, "node hierarchy deeper than 256 levels (a cycle?)"));
         }
         let local = Mat4::from_cols_array_2d(&node.transform().matrix());
         if !local.is_finite() {
@@ -240,7 +241,14 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             let slot = match mesh_slot.get(&mesh.index()) {
                 Some(&s) => Some(s),
                 None => {
-                    let m = import_mesh(&ctx, &mesh, &buffers, fallback_material, &mut scene.stats, &mut scene.warnings)?;
+                    let m = import_mesh(
+                        &ctx,
+                        &mesh,
+                        &buffers,
+                        fallback_material,
+                        &mut scene.stats,
+                        &mut scene.warnings,
+                    )?;
                     if m.triangles.is_empty() {
                         None
                     } else {
@@ -253,9 +261,9 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             };
             if let Some(mesh_index) = slot {
                 if world.determinant().abs() <= f32::MIN_POSITIVE {
-                    scene
-                        .warnings
-                        .push(format!("{location}: transform has zero scale; instance skipped"));
+                    scene.warnings.push(format!(
+                        "{location}: transform has zero scale; instance skipped"
+                    ));
                 } else {
                     scene.instances.push(Instance {
                         node: node_name.clone(),
@@ -267,7 +275,9 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             }
         }
         if let Some(light) = node.light() {
-            scene.lights.push(import_light(&ctx, &light, &world, &node_name)?);
+            scene
+                .lights
+                .push(import_light(&ctx, &light, &world, &node_name)?);
         }
         if let Some(camera) = node.camera() {
             if let gltf::camera::Projection::Perspective(p) = camera.projection() {
@@ -297,10 +307,12 @@ fn load_buffers(ctx: &Ctx, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>> {
     for buffer in gltf.document.buffers() {
         let location = format!("buffers[{}]", buffer.index());
         let data = match buffer.source() {
-            gltf::buffer::Source::Bin => gltf
-                .blob
-                .clone()
-                .ok_or_else(|| ctx.invalid(&location, "refers to the GLB binary chunk, which is missing"))?,
+            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
+                ctx.invalid(
+                    &location,
+                    "refers to the GLB binary chunk, which is missing",
+                )
+            })?,
             gltf::buffer::Source::Uri(uri) => match ctx.data_uri(uri, &location)? {
                 Some(d) => d,
                 None => {
@@ -387,12 +399,22 @@ fn check_accessors(ctx: &Ctx, doc: &gltf::Document, buffers: &[Vec<u8>]) -> Resu
                 gltf::accessor::sparse::IndexType::U16 => 2,
                 gltf::accessor::sparse::IndexType::U32 => 4,
             };
-            if !in_range(idx.offset(), n.saturating_mul(idx_size), idx.view().length()) {
-                return Err(ctx.invalid(format!("{location}.sparse.indices"), "runs past its buffer view"));
+            if !in_range(
+                idx.offset(),
+                n.saturating_mul(idx_size),
+                idx.view().length(),
+            ) {
+                return Err(ctx.invalid(
+                    format!("{location}.sparse.indices"),
+                    "runs past its buffer view",
+                ));
             }
             let vals = sparse.values();
             if !in_range(vals.offset(), n.saturating_mul(elem), vals.view().length()) {
-                return Err(ctx.invalid(format!("{location}.sparse.values"), "runs past its buffer view"));
+                return Err(ctx.invalid(
+                    format!("{location}.sparse.values"),
+                    "runs past its buffer view",
+                ));
             }
             // Sparse indices must address elements of the accessor.
             let view = idx.view();
@@ -401,12 +423,20 @@ fn check_accessors(ctx: &Ctx, doc: &gltf::Document, buffers: &[Vec<u8>]) -> Resu
                 let i = match idx_size {
                     1 => data[k] as usize,
                     2 => u16::from_le_bytes([data[2 * k], data[2 * k + 1]]) as usize,
-                    _ => u32::from_le_bytes([data[4 * k], data[4 * k + 1], data[4 * k + 2], data[4 * k + 3]]) as usize,
+                    _ => u32::from_le_bytes([
+                        data[4 * k],
+                        data[4 * k + 1],
+                        data[4 * k + 2],
+                        data[4 * k + 3],
+                    ]) as usize,
                 };
                 if i >= acc.count() {
                     return Err(ctx.invalid(
                         format!("{location}.sparse.indices"),
-                        format!("index {i} is not below the accessor's count {}", acc.count()),
+                        format!(
+                            "index {i} is not below the accessor's count {}",
+                            acc.count()
+                        ),
                     ));
                 }
             }
@@ -458,30 +488,61 @@ fn import_mesh(
     for prim in mesh.primitives() {
         let location = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
         let mode = prim.mode();
-        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
             stats.skipped_primitives += 1;
-            warnings.push(format!("{location}: {mode:?} primitive skipped (only triangles are baked)"));
+            warnings.push(format!(
+                "{location}: {mode:?} primitive skipped (only triangles are baked)"
+            ));
             continue;
         }
         let pos_acc = prim
             .get(&gltf::Semantic::Positions)
             .ok_or_else(|| ctx.invalid(&location, "has no POSITION attribute"))?;
-        expect_type(ctx, &pos_acc, &format!("{location}.attributes.POSITION"), &[D::Vec3], &[T::F32])?;
+        expect_type(
+            ctx,
+            &pos_acc,
+            &format!("{location}.attributes.POSITION"),
+            &[D::Vec3],
+            &[T::F32],
+        )?;
         if let Some(a) = prim.get(&gltf::Semantic::Normals) {
-            expect_type(ctx, &a, &format!("{location}.attributes.NORMAL"), &[D::Vec3], &[T::F32])?;
+            expect_type(
+                ctx,
+                &a,
+                &format!("{location}.attributes.NORMAL"),
+                &[D::Vec3],
+                &[T::F32],
+            )?;
         }
         for set in 0..2 {
             if let Some(a) = prim.get(&gltf::Semantic::TexCoords(set)) {
-                expect_type(ctx, &a, &format!("{location}.attributes.TEXCOORD_{set}"), &[D::Vec2], &[T::F32, T::U8, T::U16])?;
+                expect_type(
+                    ctx,
+                    &a,
+                    &format!("{location}.attributes.TEXCOORD_{set}"),
+                    &[D::Vec2],
+                    &[T::F32, T::U8, T::U16],
+                )?;
             }
         }
         if let Some(a) = prim.indices() {
-            expect_type(ctx, &a, &format!("{location}.indices"), &[D::Scalar], &[T::U8, T::U16, T::U32])?;
+            expect_type(
+                ctx,
+                &a,
+                &format!("{location}.indices"),
+                &[D::Scalar],
+                &[T::U8, T::U16, T::U32],
+            )?;
         }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
         let positions: Vec<Vec3> = reader
             .read_positions()
-            .ok_or_else(|| ctx.invalid(format!("{location}.attributes.POSITION"), "cannot be read"))?
+            .ok_or_else(|| {
+                ctx.invalid(format!("{location}.attributes.POSITION"), "cannot be read")
+            })?
             .map(Vec3::from)
             .collect();
         if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
@@ -491,7 +552,8 @@ fn import_mesh(
             ));
         }
         let vcount = positions.len();
-        let normals: Option<Vec<Vec3>> = reader.read_normals().map(|it| it.map(Vec3::from).collect());
+        let normals: Option<Vec<Vec3>> =
+            reader.read_normals().map(|it| it.map(Vec3::from).collect());
         if let Some(n) = &normals {
             if let Some(i) = n.iter().position(|v| !v.is_finite()) {
                 return Err(ctx.invalid(
@@ -517,13 +579,17 @@ fn import_mesh(
                 format!("index {bad} is not below the vertex count {vcount}"),
             ));
         }
-        if uv0.len() != vcount || prim_uv1.as_ref().is_some_and(|u| u.len() != vcount)
+        if uv0.len() != vcount
+            || prim_uv1.as_ref().is_some_and(|u| u.len() != vcount)
             || normals.as_ref().is_some_and(|n| n.len() != vcount)
         {
             return Err(ctx.invalid(&location, "attributes have different counts"));
         }
         let tris = triangulate(mode, &indices);
-        let material = prim.material().index().map_or(fallback_material, |i| i as u32);
+        let material = prim
+            .material()
+            .index()
+            .map_or(fallback_material, |i| i as u32);
 
         // Missing normals: glTF asks for flat normals, so split the vertices per triangle.
         let base = out.positions.len() as u32;
@@ -532,7 +598,9 @@ fn import_mesh(
             let p = t.map(|i| positions[i as usize]);
             let cross = (p[1] - p[0]).cross(p[2] - p[0]);
             let scale = (p[1] - p[0]).length_squared() + (p[2] - p[0]).length_squared();
-            let degenerate = t[0] == t[1] || t[1] == t[2] || t[0] == t[2]
+            let degenerate = t[0] == t[1]
+                || t[1] == t[2]
+                || t[0] == t[2]
                 || cross.length() <= 1e-7 * scale
                 || scale == 0.0;
             if degenerate {
@@ -557,7 +625,8 @@ fn import_mesh(
         if !flat {
             let normals = normals.unwrap_or_default();
             out.positions.extend_from_slice(&positions);
-            out.normals.extend(normals.iter().map(|n| n.normalize_or(Vec3::Y)));
+            out.normals
+                .extend(normals.iter().map(|n| n.normalize_or(Vec3::Y)));
             out.uv0.extend_from_slice(&uv0);
             uv1.extend(prim_uv1.clone().unwrap_or_else(|| vec![Vec2::ZERO; vcount]));
         }
@@ -581,7 +650,9 @@ fn triangulate(mode: Mode, idx: &[u32]) -> Vec<[u32; 3]> {
                 }
             })
             .collect(),
-        Mode::TriangleFan => (2..idx.len()).map(|i| [idx[i - 1], idx[i], idx[0]]).collect(),
+        Mode::TriangleFan => (2..idx.len())
+            .map(|i| [idx[i - 1], idx[i], idx[0]])
+            .collect(),
         _ => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
     }
 }
@@ -599,37 +670,49 @@ fn import_material(
     let base = pbr.base_color_factor();
     let emissive = material.emissive_factor();
     let strength = material.emissive_strength().unwrap_or(1.0);
-    let values = base.iter().chain(emissive.iter()).chain(std::iter::once(&strength));
+    let values = base
+        .iter()
+        .chain(emissive.iter())
+        .chain(std::iter::once(&strength));
     if values.clone().any(|v| !v.is_finite()) || values.clone().any(|&v| v < 0.0) {
         return Err(ctx.invalid(&location, "colour factors must be finite and non-negative"));
     }
-    let mut texture_ref = |info: Option<gltf::texture::Info>, what: &str| -> Result<Option<TextureRef>> {
-        let Some(info) = info else { return Ok(None) };
-        let (offset, rotation, scale) = match info.texture_transform() {
-            Some(t) => (Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale())),
-            None => (Vec2::ZERO, 0.0, Vec2::ONE),
-        };
-        if info.tex_coord() != 0 {
-            scene.warnings.push(format!(
-                "{location}.{what}: uses TEXCOORD_{}; sampled through TEXCOORD_0",
-                info.tex_coord()
-            ));
-        }
-        let texture = info.texture();
-        let image_index = texture.source().index();
-        let slot = match cache.get(&image_index) {
-            Some(&s) => s,
-            None => {
-                let img = decode_image(ctx, &texture, buffers)?;
-                let s = scene.textures.len() as u32;
-                scene.textures.push(img);
-                cache.insert(image_index, s);
-                s
+    let mut texture_ref =
+        |info: Option<gltf::texture::Info>, what: &str| -> Result<Option<TextureRef>> {
+            let Some(info) = info else { return Ok(None) };
+            let (offset, rotation, scale) = match info.texture_transform() {
+                Some(t) => (Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale())),
+                None => (Vec2::ZERO, 0.0, Vec2::ONE),
+            };
+            if info.tex_coord() != 0 {
+                scene.warnings.push(format!(
+                    "{location}.{what}: uses TEXCOORD_{}; sampled through TEXCOORD_0",
+                    info.tex_coord()
+                ));
             }
+            let texture = info.texture();
+            let image_index = texture.source().index();
+            let slot = match cache.get(&image_index) {
+                Some(&s) => s,
+                None => {
+                    let img = decode_image(ctx, &texture, buffers)?;
+                    let s = scene.textures.len() as u32;
+                    scene.textures.push(img);
+                    cache.insert(image_index, s);
+                    s
+                }
+            };
+            Ok(Some(TextureRef {
+                texture: slot,
+                offset,
+                rotation,
+                scale,
+            }))
         };
-        Ok(Some(TextureRef { texture: slot, offset, rotation, scale }))
-    };
-    let albedo_texture = texture_ref(pbr.base_color_texture(), "pbrMetallicRoughness.baseColorTexture")?;
+    let albedo_texture = texture_ref(
+        pbr.base_color_texture(),
+        "pbrMetallicRoughness.baseColorTexture",
+    )?;
     let emission_texture = texture_ref(material.emissive_texture(), "emissiveTexture")?;
     Ok(Material {
         name: material
@@ -709,8 +792,12 @@ fn import_light(
     let location = format!("extensions.KHR_lights_punctual.lights[{}]", light.index());
     let color = Vec3::from(light.color());
     let intensity = light.intensity();
-    if !color.is_finite() || !intensity.is_finite() || intensity < 0.0 || color.min_element() < 0.0 {
-        return Err(ctx.invalid(location, "colour and intensity must be finite and non-negative"));
+    if !color.is_finite() || !intensity.is_finite() || intensity < 0.0 || color.min_element() < 0.0
+    {
+        return Err(ctx.invalid(
+            location,
+            "colour and intensity must be finite and non-negative",
+        ));
     }
     let kind = match light.kind() {
         Kind::Directional => LightKind::Directional,
@@ -731,7 +818,9 @@ fn import_light(
         kind,
         intensity: color * intensity,
         position: world.transform_point3(Vec3::ZERO),
-        direction: world.transform_vector3(Vec3::NEG_Z).normalize_or(Vec3::NEG_Y),
+        direction: world
+            .transform_vector3(Vec3::NEG_Z)
+            .normalize_or(Vec3::NEG_Y),
         range: light.range(),
     })
 }
@@ -742,8 +831,14 @@ mod tests {
 
     #[test]
     fn strips_and_fans() {
-        assert_eq!(triangulate(Mode::TriangleStrip, &[0, 1, 2, 3]), vec![[0, 1, 2], [2, 1, 3]]);
-        assert_eq!(triangulate(Mode::TriangleFan, &[0, 1, 2, 3]), vec![[1, 2, 0], [2, 3, 0]]);
+        assert_eq!(
+            triangulate(Mode::TriangleStrip, &[0, 1, 2, 3]),
+            vec![[0, 1, 2], [2, 1, 3]]
+        );
+        assert_eq!(
+            triangulate(Mode::TriangleFan, &[0, 1, 2, 3]),
+            vec![[1, 2, 0], [2, 3, 0]]
+        );
         assert_eq!(triangulate(Mode::Triangles, &[0, 1, 2, 3]), vec![[0, 1, 2]]);
     }
 

@@ -55,7 +55,11 @@ pub fn solve(
             change += ((*a - *b).abs().element_sum()) as f64;
             total += (a.abs().element_sum()) as f64;
         }
-        residual = if total > 0.0 { (change / total) as f32 } else { 0.0 };
+        residual = if total > 0.0 {
+            (change / total) as f32
+        } else {
+            0.0
+        };
         radiance = next;
         iterations += 1;
         advance(1);

@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 
 /// A reference scene shipped in `scenes/` (copied from `../shared/scenes`).
 pub fn scene_path(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes")
+        .join(name)
 }
 
 /// `scenes/expected.json`.
@@ -43,13 +45,19 @@ impl GltfBuilder {
         }
         let offset = self.buffer.len();
         self.buffer.extend_from_slice(bytes);
-        self.views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len(), "target": target}));
+        self.views.push(
+            json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len(), "target": target}),
+        );
         self.views.len() - 1
     }
 
     /// A VEC3 float accessor (with min/max, as POSITION requires).
     pub fn vec3(&mut self, data: &[[f32; 3]]) -> usize {
-        let bytes: Vec<u8> = data.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+        let bytes: Vec<u8> = data
+            .iter()
+            .flatten()
+            .flat_map(|f| f.to_le_bytes())
+            .collect();
         let view = self.push_view(&bytes, 34962);
         let mut min = [f32::INFINITY; 3];
         let mut max = [f32::NEG_INFINITY; 3];
@@ -60,7 +68,10 @@ impl GltfBuilder {
             }
         }
         let (min, max): (Vec<Value>, Vec<Value>) = if data.iter().flatten().all(|f| f.is_finite()) {
-            (min.iter().map(|&v| json!(v)).collect(), max.iter().map(|&v| json!(v)).collect())
+            (
+                min.iter().map(|&v| json!(v)).collect(),
+                max.iter().map(|&v| json!(v)).collect(),
+            )
         } else {
             (vec![json!(0.0); 3], vec![json!(0.0); 3])
         };
@@ -83,10 +94,15 @@ impl GltfBuilder {
             "pbrMetallicRoughness": {"baseColorFactor": [albedo[0], albedo[1], albedo[2], 1.0], "metallicFactor": 0.0},
         });
         if peak > 0.0 {
-            let factor: Vec<f32> = if peak > 1.0 { emission.iter().map(|e| e / peak).collect() } else { emission.to_vec() };
+            let factor: Vec<f32> = if peak > 1.0 {
+                emission.iter().map(|e| e / peak).collect()
+            } else {
+                emission.to_vec()
+            };
             m["emissiveFactor"] = json!(factor);
             if peak > 1.0 {
-                m["extensions"] = json!({"KHR_materials_emissive_strength": {"emissiveStrength": peak}});
+                m["extensions"] =
+                    json!({"KHR_materials_emissive_strength": {"emissiveStrength": peak}});
             }
         }
         self.materials.push(m);
@@ -94,7 +110,12 @@ impl GltfBuilder {
     }
 
     /// A one-primitive mesh (no normals: flat normals are computed).
-    pub fn mesh(&mut self, positions: &[[f32; 3]], indices: &[u32], material: Option<usize>) -> usize {
+    pub fn mesh(
+        &mut self,
+        positions: &[[f32; 3]],
+        indices: &[u32],
+        material: Option<usize>,
+    ) -> usize {
         let pos = self.vec3(positions);
         let idx = self.indices(indices);
         let mut prim = json!({"attributes": {"POSITION": pos}, "indices": idx});
@@ -144,7 +165,10 @@ impl GltfBuilder {
 /// A rectangle spanned from `origin` by edges `u` and `v`, facing `u × v`.
 pub fn quad(origin: [f32; 3], u: [f32; 3], v: [f32; 3]) -> (Vec<[f32; 3]>, Vec<u32>) {
     let p = |a: f32, b: f32| [0, 1, 2].map(|c| origin[c] + a * u[c] + b * v[c]);
-    (vec![p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)], vec![0, 1, 2, 0, 2, 3])
+    (
+        vec![p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)],
+        vec![0, 1, 2, 0, 2, 3],
+    )
 }
 
 /// A disk of radius `r` at height `y`, facing ±Y (`up`), as a fan of `n` triangles.
@@ -173,20 +197,33 @@ pub fn sphere(r: f32, rings: u32, segments: u32, inward: bool) -> (Vec<[f32; 3]>
         let th = i as f32 / rings as f32 * std::f32::consts::PI;
         for j in 0..=segments {
             let ph = j as f32 / segments as f32 * std::f32::consts::TAU;
-            p.push([r * th.sin() * ph.cos(), r * th.cos(), -r * th.sin() * ph.sin()]);
+            p.push([
+                r * th.sin() * ph.cos(),
+                r * th.cos(),
+                -r * th.sin() * ph.sin(),
+            ]);
         }
     }
     let w = segments + 1;
     let mut idx = Vec::new();
     for i in 0..rings {
         for j in 0..segments {
-            let (a, b, c, d) = (i * w + j, i * w + j + 1, (i + 1) * w + j, (i + 1) * w + j + 1);
+            let (a, b, c, d) = (
+                i * w + j,
+                i * w + j + 1,
+                (i + 1) * w + j,
+                (i + 1) * w + j + 1,
+            );
             for t in [[a, c, b], [b, c, d]] {
                 // Orient by the centroid: outward unless `inward`.
                 let v = t.map(|k| p[k as usize]);
                 let e1 = [0, 1, 2].map(|c| v[1][c] - v[0][c]);
                 let e2 = [0, 1, 2].map(|c| v[2][c] - v[0][c]);
-                let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+                let n = [
+                    e1[1] * e2[2] - e1[2] * e2[1],
+                    e1[2] * e2[0] - e1[0] * e2[2],
+                    e1[0] * e2[1] - e1[1] * e2[0],
+                ];
                 let out: f32 = (0..3).map(|c| n[c] * (v[0][c] + v[1][c] + v[2][c])).sum();
                 if (out > 0.0) != inward {
                     idx.extend(t);

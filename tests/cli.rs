@@ -1,0 +1,456 @@
+//! The `radbake` binary: a good bake writes its files and report; every bad
+//! input gives one line naming the problem and exit code 1, never a panic.
+
+mod common;
+
+use common::*;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+struct Run {
+    code: i32,
+    stderr: String,
+}
+
+fn radbake(args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(args)
+        .output()
+        .expect("radbake runs");
+    Run {
+        code: out.status.code().unwrap_or(-1),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+fn bake(scene: &Path, out: &Path, extra: &[&str]) -> Run {
+    let mut args = vec![
+        "bake",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--texels-per-meter",
+        "20",
+        "--rays-per-patch",
+        "64",
+    ];
+    args.extend_from_slice(extra);
+    radbake(&args)
+}
+
+/// A bad input must fail with exit 1 and one line that mentions `needle`.
+fn assert_rejected(scene: &Path, needle: &str) {
+    let out = scene.with_extension("out");
+    let r = bake(scene, &out, &[]);
+    assert_eq!(
+        r.code,
+        1,
+        "exit code for {}: stderr {}",
+        scene.display(),
+        r.stderr
+    );
+    assert!(
+        !r.stderr.contains("panicked") && !r.stderr.contains("internal error"),
+        "{}",
+        r.stderr
+    );
+    let lines: Vec<&str> = r.stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "one line expected: {:?}", lines);
+    assert!(lines[0].starts_with("error: "), "{}", lines[0]);
+    assert!(r.stderr.contains(needle), "`{needle}` not in: {}", r.stderr);
+    assert!(
+        !out.join("report.json").exists(),
+        "a failed bake wrote a report"
+    );
+}
+
+/// A valid single-quad scene with an emitter above it.
+fn plates() -> GltfBuilder {
+    let mut b = GltfBuilder::default();
+    let emit = b.material([0.0; 3], [1.0; 3]);
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = quad([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let (p, i) = quad([0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]);
+    let m = b.mesh(&p, &i, Some(emit));
+    b.node("lamp", m);
+    b
+}
+
+fn write_json(dir: &Path, name: &str, v: &Value) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, serde_json::to_vec(v).unwrap()).unwrap();
+    p
+}
+
+/// A GLB container: 12-byte header, JSON chunk, BIN chunk (glTF 2.0 §4.4).
+fn glb(json: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut j = serde_json::to_vec(json).unwrap();
+    while j.len() % 4 != 0 {
+        j.push(b' ');
+    }
+    let mut b = bin.to_vec();
+    while b.len() % 4 != 0 {
+        b.push(0);
+    }
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&b);
+    out
+}
+
+fn plates_glb() -> Vec<u8> {
+    let b = plates();
+    let mut doc = b.json();
+    doc["buffers"] = json!([{"byteLength": b.buffer.len()}]);
+    glb(&doc, &b.buffer)
+}
+
+#[test]
+fn bakes_the_cornell_box_and_writes_outputs() {
+    let dir = temp_dir("cli-cornell");
+    let out = dir.join("cornell");
+    let r = bake(&scene_path("cornell_box.gltf"), &out, &[]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    for f in ["lightmap_0.exr", "lightmap_0.png", "report.json"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let report: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let instances = report["instances"].as_array().unwrap();
+    assert_eq!(instances.len(), 8);
+    for i in instances {
+        assert!(i["texels"].as_u64().unwrap() > 0);
+        assert_eq!(i["mean"].as_array().unwrap().len(), 3);
+        assert!(
+            i["node"].is_string() && i["mesh"].is_string() && i["area"].as_f64().unwrap() > 0.0
+        );
+    }
+    for key in [
+        "triangles",
+        "instances",
+        "texels",
+        "patches",
+        "nonzeros",
+        "rays",
+        "iterations",
+        "residual",
+        "degenerate_triangles",
+    ] {
+        assert!(report["counts"].get(key).is_some(), "counts.{key} missing");
+    }
+    assert_eq!(report["settings"]["texels_per_meter"], json!(20.0));
+    assert!(report["stages"].as_array().unwrap().len() >= 8);
+    // The EXR holds the float values: read it back.
+    let img = exr::prelude::read_first_rgba_layer_from_file(
+        out.join("lightmap_0.exr"),
+        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
+        |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .unwrap();
+    let size = report["counts"]["page_size"].as_array().unwrap();
+    assert_eq!(
+        img.layer_data.size.width() as u64,
+        size[0].as_u64().unwrap()
+    );
+    let (_, px) = &img.layer_data.channel_data.pixels;
+    assert!(px
+        .iter()
+        .all(|p| p.iter().all(|v| v.is_finite() && *v >= 0.0)));
+    let max = px.iter().fold(0.0f32, |m, p| m.max(p[0]));
+    assert!(max > 0.1, "brightest red {max}");
+}
+
+#[test]
+fn help_documents_flags() {
+    let out = Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(["bake", "--help"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    for flag in [
+        "--out",
+        "--texels-per-meter",
+        "--patch-texels",
+        "--rays-per-patch",
+        "--tolerance",
+        "--max-iterations",
+        "--uv",
+        "--config",
+    ] {
+        assert!(text.contains(flag), "{flag} not in --help");
+    }
+    assert_eq!(out.status.code(), Some(0));
+    let r = radbake(&["bake"]);
+    assert_eq!(r.code, 2, "usage error exit code");
+}
+
+#[test]
+fn glb_with_bin_chunk_bakes() {
+    let dir = temp_dir("cli-glb");
+    let path = dir.join("plates.glb");
+    std::fs::write(&path, plates_glb()).unwrap();
+    let r = bake(&path, &dir.join("out"), &[]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+}
+
+#[test]
+fn external_buffer_inside_folder_bakes() {
+    let dir = temp_dir("cli-external");
+    let b = plates();
+    std::fs::create_dir_all(dir.join("data")).unwrap();
+    std::fs::write(dir.join("data/plates bin.bin"), &b.buffer).unwrap();
+    let mut doc = b.json();
+    doc["buffers"][0]["uri"] = json!("data/plates%20bin.bin");
+    let path = write_json(&dir, "plates.gltf", &doc);
+    let r = bake(&path, &dir.join("out"), &[]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+}
+
+#[test]
+fn no_emitters_bakes_black_with_a_warning() {
+    let dir = temp_dir("cli-dark");
+    let mut b = GltfBuilder::default();
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = quad([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let path = dir.join("dark.gltf");
+    b.write(&path);
+    let r = bake(&path, &dir.join("out"), &[]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(r.stderr.contains("no emissive"), "{}", r.stderr);
+    let report: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("out/report.json")).unwrap()).unwrap();
+    assert_eq!(report["instances"][0]["mean"], json!([0.0, 0.0, 0.0]));
+}
+
+#[test]
+fn degenerate_triangles_are_skipped_and_counted() {
+    let dir = temp_dir("cli-degenerate");
+    let mut b = plates();
+    // Floor quad plus a zero-area triangle and a repeated-index one.
+    let p = vec![
+        [0.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [2.0, 0.0, 2.0],
+        [3.0, 0.0, 3.0],
+    ];
+    let m = b.mesh(&p, &[0, 1, 2, 0, 3, 4, 1, 1, 2], Some(1));
+    b.node("slivers", m);
+    let path = dir.join("deg.gltf");
+    b.write(&path);
+    let r = bake(&path, &dir.join("out"), &[]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let report: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("out/report.json")).unwrap()).unwrap();
+    assert_eq!(report["counts"]["degenerate_triangles"], json!(2));
+}
+
+#[test]
+fn unreadable_and_unparsable_files() {
+    let dir = temp_dir("cli-parse");
+    assert_rejected(&dir.join("missing.gltf"), "cannot read");
+    std::fs::write(dir.join("empty.gltf"), b"").unwrap();
+    assert_rejected(&dir.join("empty.gltf"), "empty");
+    std::fs::write(dir.join("text.gltf"), b"this is not json").unwrap();
+    assert_rejected(&dir.join("text.gltf"), "not a valid glTF");
+    let good = plates_glb();
+    // Truncated in the header, in the JSON chunk, in the BIN chunk.
+    for (k, cut) in [6usize, 40, good.len() - 10].into_iter().enumerate() {
+        let p = dir.join(format!("cut{k}.glb"));
+        std::fs::write(&p, &good[..cut]).unwrap();
+        assert_rejected(&p, "cut");
+    }
+    let mut bad_magic = good.clone();
+    bad_magic[0] = b'X';
+    std::fs::write(dir.join("magic.glb"), &bad_magic).unwrap();
+    assert_rejected(&dir.join("magic.glb"), "magic.glb");
+    let mut bad_version = good;
+    bad_version[4] = 1;
+    std::fs::write(dir.join("version.glb"), &bad_version).unwrap();
+    assert_rejected(&dir.join("version.glb"), "version.glb");
+}
+
+#[test]
+fn uris_may_not_leave_the_scene_folder() {
+    let root = temp_dir("cli-uri");
+    let dir = root.join("scene");
+    std::fs::create_dir_all(&dir).unwrap();
+    let b = plates();
+    std::fs::write(root.join("secret.bin"), &b.buffer).unwrap();
+    let mut doc = b.json();
+    doc["buffers"][0]["uri"] = json!("../secret.bin");
+    assert_rejected(
+        &write_json(&dir, "dotdot.gltf", &doc),
+        "leaves the scene's folder",
+    );
+    doc["buffers"][0]["uri"] = json!("sub/../../secret.bin");
+    assert_rejected(
+        &write_json(&dir, "dotdot2.gltf", &doc),
+        "leaves the scene's folder",
+    );
+    doc["buffers"][0]["uri"] = json!(root.join("secret.bin").to_str().unwrap());
+    assert_rejected(&write_json(&dir, "absolute.gltf", &doc), "absolute");
+    doc["buffers"][0]["uri"] = json!("file:///etc/passwd");
+    assert_rejected(&write_json(&dir, "scheme.gltf", &doc), "absolute");
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(root.join("secret.bin"), dir.join("link.bin")).unwrap();
+        doc["buffers"][0]["uri"] = json!("link.bin");
+        assert_rejected(
+            &write_json(&dir, "symlink.gltf", &doc),
+            "outside the scene's folder",
+        );
+    }
+    doc["buffers"][0]["uri"] = json!("nothere.bin");
+    assert_rejected(&write_json(&dir, "missing.gltf", &doc), "buffers[0]");
+}
+
+#[test]
+fn bad_geometry_is_named() {
+    let dir = temp_dir("cli-geometry");
+    // Index past the vertex count.
+    let mut b = GltfBuilder::default();
+    let m = b.mesh(
+        &[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+        &[0, 1, 7],
+        None,
+    );
+    b.node("bad", m);
+    let path = dir.join("index.gltf");
+    b.write(&path);
+    assert_rejected(&path, "meshes[0].primitives[0].indices");
+    // NaN and infinite positions.
+    for (k, v) in [f32::NAN, f32::INFINITY].into_iter().enumerate() {
+        let mut b = GltfBuilder::default();
+        let m = b.mesh(
+            &[[0.0; 3], [v, 0.0, 0.0], [0.0, 0.0, 1.0]],
+            &[0, 1, 2],
+            None,
+        );
+        b.node("bad", m);
+        let path = dir.join(format!("nan{k}.gltf"));
+        b.write(&path);
+        assert_rejected(&path, "meshes[0].primitives[0].attributes.POSITION");
+    }
+    // An accessor that runs past its buffer view.
+    let mut doc = plates().json();
+    doc["accessors"][0]["count"] = json!(1000);
+    assert_rejected(&write_json(&dir, "count.gltf", &doc), "accessors[0]");
+    // A buffer view past its buffer.
+    let mut doc = plates().json();
+    doc["bufferViews"][0]["byteLength"] = json!(1 << 20);
+    assert_rejected(&write_json(&dir, "view.gltf", &doc), "bufferViews[0]");
+    // No meshes at all.
+    let doc = json!({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"name": "empty"}]});
+    assert_rejected(&write_json(&dir, "nomesh.gltf", &doc), "no triangles");
+    // A required extension we do not support.
+    let mut doc = plates().json();
+    doc["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+    doc["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    assert_rejected(
+        &write_json(&dir, "draco.gltf", &doc),
+        "KHR_draco_mesh_compression",
+    );
+}
+
+#[test]
+fn huge_image_header_is_refused_before_decoding() {
+    let dir = temp_dir("cli-image");
+    // A PNG signature and an IHDR chunk claiming 100000 × 100000 pixels.
+    let mut png = vec![0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a];
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(b"IHDR");
+    ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+    ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 6, 0, 0, 0]);
+    let crc = crc32(&ihdr);
+    png.extend_from_slice(&13u32.to_be_bytes());
+    png.extend_from_slice(&ihdr);
+    png.extend_from_slice(&crc.to_be_bytes());
+    std::fs::write(dir.join("huge.png"), &png).unwrap();
+    let mut doc = plates().json();
+    doc["images"] = json!([{"uri": "huge.png"}]);
+    doc["textures"] = json!([{"source": 0}]);
+    doc["materials"][1]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
+    assert_rejected(&write_json(&dir, "huge.gltf", &doc), "images[0]");
+}
+
+/// CRC-32 (ISO 3309) for the PNG chunk above.
+fn crc32(data: &[u8]) -> u32 {
+    let mut c = 0xffff_ffffu32;
+    for &b in data {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xedb8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+#[test]
+fn config_file_is_read_and_unknown_keys_rejected() {
+    let dir = temp_dir("cli-config");
+    let path = dir.join("plates.gltf");
+    plates().write(&path);
+    std::fs::write(
+        dir.join("good.toml"),
+        "patch_texels = 2\nrays_per_patch = 32\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("bad.toml"), "texels_per_metre = 2\n").unwrap();
+    let out = dir.join("out");
+    let r = radbake(&[
+        "bake",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--config",
+        dir.join("good.toml").to_str().unwrap(),
+        "--texels-per-meter",
+        "16",
+    ]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let report: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["settings"]["patch_texels"], json!(2));
+    assert_eq!(report["settings"]["texels_per_meter"], json!(16.0));
+    let r = radbake(&[
+        "bake",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--config",
+        dir.join("bad.toml").to_str().unwrap(),
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("texels_per_metre"), "{}", r.stderr);
+    let r = radbake(&[
+        "bake",
+        path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--patch-texels",
+        "0",
+    ]);
+    assert_eq!(r.code, 1);
+    assert!(r.stderr.contains("patch_texels"), "{}", r.stderr);
+}
