@@ -13,13 +13,18 @@ fn main() -> anyhow::Result<()> {
         None => BakeConfig::default(),
     };
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
-    let expected: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("expected.json"))?)?;
+    let expected: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("expected.json"))?)?;
     println!("| scene | quantity | exact | radbake | error | bake time |");
     println!("|---|---|---|---|---|---|");
     for (file, node, key) in [
         ("furnace_box.gltf", "box", "lightmap_everywhere"),
         ("parallel_plates.gltf", "receiver", "receiver_area_mean"),
-        ("perpendicular_plates.gltf", "receiver", "receiver_area_mean"),
+        (
+            "perpendicular_plates.gltf",
+            "receiver",
+            "receiver_area_mean",
+        ),
     ] {
         let t = Instant::now();
         let scene = radbake::scene::load(&dir.join(file), &Default::default())?;
@@ -27,8 +32,14 @@ fn main() -> anyhow::Result<()> {
         let secs = t.elapsed().as_secs_f64();
         let exact = expected[file][key].as_f64().unwrap_or(f64::NAN);
         let reports = bake.instance_reports();
-        let got = reports.iter().find(|r| r.node == node).map_or(f64::NAN, |r| r.mean[0] as f64);
-        println!("| {file} | {node} mean | {exact:.6} | {got:.6} | {:+.3} % | {secs:.2} s |", 100.0 * (got - exact) / exact);
+        let got = reports
+            .iter()
+            .find(|r| r.node == node)
+            .map_or(f64::NAN, |r| r.mean[0] as f64);
+        println!(
+            "| {file} | {node} mean | {exact:.6} | {got:.6} | {:+.3} % | {secs:.2} s |",
+            100.0 * (got - exact) / exact
+        );
         if file == "furnace_box.gltf" {
             let worst = bake
                 .lightmaps
@@ -36,7 +47,10 @@ fn main() -> anyhow::Result<()> {
                 .iter()
                 .map(|v| ((v.x as f64) - exact).abs() / exact)
                 .fold(0.0, f64::max);
-            println!("| {file} | worst texel | {exact:.6} | | {:.3} % | |", 100.0 * worst);
+            println!(
+                "| {file} | worst texel | {exact:.6} | | {:.3} % | |",
+                100.0 * worst
+            );
         }
     }
     Ok(())
