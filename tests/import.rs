@@ -54,7 +54,7 @@ fn instancing_trs_and_mirrored_matrix() {
     doc["nodes"] = json!([
         // Receiver scaled ×2 by its parent and ×0.5 by itself: a TRS chain.
         {"name": "parent", "scale": [2.0, 2.0, 2.0], "children": [1]},
-        {"name": "receiver", "mesh": 1, "scale": [0.5, 0.5, 0.5], "rotation": [0.0, 0.7071068, 0.0, 0.7071068]},
+        {"name": "receiver", "mesh": 1, "scale": [0.5, 0.5, 0.5], "rotation": [0.0, std::f32::consts::FRAC_1_SQRT_2, 0.0, std::f32::consts::FRAC_1_SQRT_2]},
         // Emitter: mirrored in y (det < 0) and lifted to y = 1: faces down.
         {"name": "emitter", "mesh": m, "matrix": [1,0,0,0, 0,-1,0,0, 0,0,1,0, 0,1,0,1]},
     ]);
