@@ -30,6 +30,19 @@ pub enum Solver {
     Jacobi,
 }
 
+/// How emissive surfaces light the scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum EmitterSampling {
+    /// `direct` for emissive materials covering at most 2 % of the scene's
+    /// surface (lamps), `radiosity` for larger ones (glowing walls).
+    Auto,
+    /// Sampled per texel like lights (soft shadows at texel resolution; MIS noise).
+    Direct,
+    /// Emission enters the radiosity solve (smooth, at patch resolution).
+    Radiosity,
+}
+
 /// All bake settings. Every field has a default; `bake.toml` may set any
 /// subset (unknown keys are rejected).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -57,6 +70,12 @@ pub struct BakeConfig {
     pub seed: u64,
     /// Largest lightmap texel count; above it the texel density is lowered (with a warning).
     pub max_texels: u64,
+    /// Direct-light samples per texel (≥ 1): this many emitter samples and this many hemisphere rays.
+    pub direct_samples: u32,
+    /// Uniform sky radiance (linear RGB, ≥ 0) seen by rays that leave the scene.
+    pub sky: [f32; 3],
+    /// How emissive surfaces are treated.
+    pub emitters: EmitterSampling,
 }
 
 impl Default for BakeConfig {
@@ -80,6 +99,9 @@ impl BakeConfig {
             solver: Solver::Jacobi,
             seed: 0x5eed,
             max_texels: 16 << 20,
+            direct_samples: 64,
+            sky: [0.0; 3],
+            emitters: EmitterSampling::Auto,
         }
     }
 
@@ -111,6 +133,12 @@ impl BakeConfig {
         }
         if self.max_iterations < 1 {
             return bad("max_iterations", "must be ≥ 1");
+        }
+        if self.direct_samples < 1 || self.direct_samples > 1 << 16 {
+            return bad("direct_samples", "must be in 1..=65536");
+        }
+        if self.sky.iter().any(|v| !v.is_finite() || *v < 0.0) {
+            return bad("sky", "must be three finite numbers ≥ 0");
         }
         if self.max_texels < 1024 {
             return bad("max_texels", "must be ≥ 1024");

@@ -26,6 +26,7 @@
 
 pub mod atlas;
 pub mod config;
+pub mod direct;
 pub mod error;
 pub mod form_factors;
 pub mod geometry;
@@ -72,8 +73,14 @@ pub struct Bake<'s> {
     pub patches: Patches,
     /// Form factors.
     pub form_factors: FormFactors,
-    /// Radiosity solution.
+    /// Direct light (irradiance / π) per texel.
+    pub direct: Vec<Vec3>,
+    /// Direct light per patch (area-weighted mean of its texels').
+    pub patch_direct: Vec<Vec3>,
+    /// Radiosity solution (H per patch includes the direct light).
     pub solution: Solution,
+    /// Rays cast for direct light.
+    pub direct_rays: u64,
     /// Lightmap pages.
     pub lightmaps: Lightmaps,
     /// Wall time per stage.
@@ -155,13 +162,47 @@ pub fn bake<'s>(
         form_factors::raycast::compute(&surfaces, config.rays_per_patch, config.seed, &advance);
     timer.end("form_factors");
 
+    timer.begin("direct", texels.len() as u64);
+    let sampled = direct_sampled_materials(scene, &geometry, config.emitters);
+    let lights = direct::Lights::new(scene, &geometry, &sampled, Vec3::from(config.sky));
+    let (texel_direct, direct_rays) = direct::texels(
+        &surfaces,
+        &lights,
+        config.direct_samples,
+        config.seed,
+        &advance,
+    );
+    let patch_direct: Vec<Vec3> = (0..patches.len())
+        .map(|i| {
+            let sum: Vec3 = patches
+                .texels_of(i)
+                .iter()
+                .map(|&t| texel_direct[t as usize] * texels.area[t as usize])
+                .sum();
+            sum / patches.area[i]
+        })
+        .collect();
+    timer.end("direct");
+
+    // Emission sampled as direct light is in D already; only the other
+    // emitters' emission enters the solve: L = E' + ρ H, H = D + F L.
     timer.begin("solve", config.max_iterations as u64);
-    let direct = vec![Vec3::ZERO; patches.len()];
+    let solve_emission: Vec<Vec3> = (0..patches.len())
+        .map(|i| {
+            let t = patches.texels_of(i)[0] as usize;
+            let m = geometry.material[texels.triangle[t] as usize] as usize;
+            if sampled[m] {
+                Vec3::ZERO
+            } else {
+                patches.emission[i]
+            }
+        })
+        .collect();
     let solution = solve::jacobi::solve(
         &form_factors.matrix,
-        &patches.emission,
+        &solve_emission,
         &patches.albedo,
-        &direct,
+        &patch_direct,
         config.tolerance,
         config.max_iterations,
         &|n| progress.advance(n),
@@ -175,10 +216,17 @@ pub fn bake<'s>(
     timer.end("solve");
 
     timer.begin("lightmaps", 0);
+    let indirect: Vec<Vec3> = solution
+        .irradiance
+        .iter()
+        .zip(&patch_direct)
+        .map(|(h, d)| *h - *d)
+        .collect();
     let lightmaps = lightmap::build(
         &texels,
         &patches,
-        &solution,
+        &texel_direct,
+        &indirect,
         atlas.page_count,
         2 * config.padding,
     );
@@ -192,11 +240,43 @@ pub fn bake<'s>(
         texels,
         patches,
         form_factors,
+        direct: texel_direct,
+        patch_direct,
         solution,
+        direct_rays,
         lightmaps,
         stages: timer.stages,
         warnings,
     })
+}
+
+/// Which materials' emission is sampled as direct light (per
+/// [`config::EmitterSampling`]); the rest enters the radiosity solve.
+fn direct_sampled_materials(
+    scene: &Scene,
+    geometry: &Geometry,
+    mode: config::EmitterSampling,
+) -> Vec<bool> {
+    use config::EmitterSampling::*;
+    let mut area = vec![0.0f64; scene.materials.len()];
+    let mut total = 0.0f64;
+    for (t, &m) in geometry.material.iter().enumerate() {
+        area[m as usize] += geometry.area[t] as f64;
+        total += geometry.area[t] as f64;
+    }
+    scene
+        .materials
+        .iter()
+        .enumerate()
+        .map(|(m, mat)| {
+            mat.is_emissive()
+                && match mode {
+                    Direct => true,
+                    Radiosity => false,
+                    Auto => area[m] <= 0.02 * total,
+                }
+        })
+        .collect()
 }
 
 impl Bake<'_> {
@@ -241,7 +321,7 @@ impl Bake<'_> {
             .collect()
     }
 
-    /// The power balance of the solution.
+    /// The power balance of the solution (see [`Energy`]).
     pub fn energy(&self) -> Energy {
         let p = &self.patches;
         let s = &self.solution;
@@ -251,14 +331,19 @@ impl Bake<'_> {
         for (i, row_sum) in rows.iter().enumerate() {
             let a = p.area[i] as f64;
             for c in 0..3 {
-                e.emitted[c] += pi * a * p.emission[i][c] as f64;
+                let emitted = pi * a * p.emission[i][c] as f64;
+                e.emitted[c] += emitted;
+                e.emitted_landing[c] += emitted * *row_sum as f64;
+                e.direct_received[c] += pi * a * self.patch_direct[i][c] as f64;
                 e.absorbed[c] += pi * a * (1.0 - p.albedo[i][c] as f64) * s.irradiance[i][c] as f64;
-                e.escaped[c] += pi * a * s.radiance[i][c] as f64 * (1.0 - *row_sum as f64);
+                e.reflected_escaped[c] +=
+                    pi * a * s.radiance[i][c] as f64 * (1.0 - *row_sum as f64);
             }
         }
         for c in 0..3 {
-            e.relative_imbalance[c] = if e.emitted[c] > 0.0 {
-                (e.emitted[c] - e.absorbed[c] - e.escaped[c]) / e.emitted[c]
+            e.relative_imbalance[c] = if e.direct_received[c] > 0.0 {
+                (e.direct_received[c] - e.absorbed[c] - e.reflected_escaped[c])
+                    / e.direct_received[c]
             } else {
                 0.0
             };
@@ -292,7 +377,7 @@ impl Bake<'_> {
                 texels: self.texels.len() as u64,
                 patches: self.patches.len() as u64,
                 nonzeros: self.form_factors.nnz() as u64,
-                rays: ff.rays,
+                rays: ff.rays + self.direct_rays,
                 rays_escaped: ff.escaped,
                 rays_back_faces: ff.back_faces,
                 rays_unmapped: ff.unmapped,

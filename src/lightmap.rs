@@ -1,12 +1,13 @@
 //! Stage 7 — lightmap pages from the patch solution. Each texel's value is
-//! H = incident irradiance / π, bilinearly interpolated between the centres
-//! of the four nearest patch blocks of the same chart (missing blocks drop
-//! out and the weights are renormalised), so patches do not show as blocks.
+//! H = incident irradiance / π = its own direct light (sampled per texel,
+//! sharp) + the indirect light of the patches, bilinearly interpolated
+//! between the centres of the four nearest patch blocks of the same chart
+//! (missing blocks drop out and the weights are renormalised), so patches do
+//! not show as blocks.
 //! Empty texels around charts are then filled by dilation, ring by ring, so
 //! bilinear filtering and mipmaps never fetch black.
 
 use crate::patches::Patches;
-use crate::solve::Solution;
 use crate::texels::Texels;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -24,8 +25,8 @@ pub struct Lightmaps {
     pub texel_values: Vec<Vec3>,
 }
 
-/// Interpolated value of every texel from the patch solution.
-pub fn interpolate(texels: &Texels, patches: &Patches, solution: &Solution) -> Vec<Vec3> {
+/// Every texel's value interpolated from per-patch values.
+pub fn interpolate(texels: &Texels, patches: &Patches, patch_values: &[Vec3]) -> Vec<Vec3> {
     let k = patches.block as f32;
     (0..texels.len())
         .into_par_iter()
@@ -49,14 +50,14 @@ pub fn interpolate(texels: &Texels, patches: &Patches, solution: &Solution) -> V
                     continue;
                 }
                 if let Some(p) = patches.by_key.get(&(inst, chart, bx as u32, by as u32)) {
-                    acc += solution.irradiance[p.0 as usize] * wt;
+                    acc += patch_values[p.0 as usize] * wt;
                     wsum += wt;
                 }
             }
             if wsum > 0.0 {
                 acc / wsum
             } else {
-                solution.irradiance[patches.of_texel[t].0 as usize]
+                patch_values[patches.of_texel[t].0 as usize]
             }
         })
         .collect()
@@ -100,15 +101,20 @@ pub fn dilate(values: &mut [Vec3], filled: &mut [bool], width: u32, height: u32,
     }
 }
 
-/// Builds the pages: interpolated texel values, then `dilate_rings` of dilation.
+/// Builds the pages: `direct` per texel plus `indirect` per patch
+/// interpolated, then `dilate_rings` of dilation.
 pub fn build(
     texels: &Texels,
     patches: &Patches,
-    solution: &Solution,
+    direct: &[Vec3],
+    indirect: &[Vec3],
     page_count: u32,
     dilate_rings: u32,
 ) -> Lightmaps {
-    let texel_values = interpolate(texels, patches, solution);
+    let mut texel_values = interpolate(texels, patches, indirect);
+    for (v, d) in texel_values.iter_mut().zip(direct) {
+        *v += *d;
+    }
     let (w, h) = (texels.width, texels.height);
     let pages = (0..page_count.max(1))
         .map(|p| {

@@ -6,7 +6,7 @@
 use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use radbake::config::{FormFactorMethod, Solver, UvSource};
+use radbake::config::{EmitterSampling, FormFactorMethod, Solver, UvSource};
 use radbake::report::StageTime;
 use radbake::BakeConfig;
 use std::path::PathBuf;
@@ -74,6 +74,16 @@ struct BakeArgs {
     /// Largest lightmap texel count; the density is lowered above it [default: 16777216].
     #[arg(long)]
     max_texels: Option<u64>,
+    /// Direct-light samples per texel (emitter samples and hemisphere rays each) [default: 64].
+    #[arg(long)]
+    direct_samples: Option<u32>,
+    /// Sky radiance `r,g,b` (W·sr⁻¹·m⁻², linear) seen by rays leaving the scene [default: 0,0,0].
+    #[arg(long, value_parser = parse_rgb)]
+    sky: Option<[f32; 3]>,
+    /// Emissive surfaces: sampled per texel (`direct`), through the radiosity solve (`radiosity`),
+    /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
+    #[arg(long, value_enum)]
+    emitters: Option<EmitterSampling>,
     /// Print nothing but errors.
     #[arg(long, short)]
     quiet: bool,
@@ -107,6 +117,19 @@ impl BakeArgs {
         );
         c.validate()?;
         Ok(c)
+    }
+}
+
+/// Parses `r,g,b` (or one number for grey).
+fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("`{x}`: {e}")))
+        .collect::<Result<_, _>>()?;
+    match v.as_slice() {
+        [g] => Ok([*g; 3]),
+        [r, g, b] => Ok([*r, *g, *b]),
+        _ => Err("expected r,g,b".into()),
     }
 }
 

@@ -63,16 +63,27 @@ pub struct Counts {
     pub residual: f32,
 }
 
-/// Power balance (W, per RGB channel): emitted = absorbed + escaped + imbalance.
+/// Power balance (W, per RGB channel).
+///
+/// Light arriving directly (`direct_received`, from direct sampling) is either
+/// absorbed or reflected, and reflected light is absorbed somewhere or
+/// escapes: `direct_received = absorbed + reflected_escaped` up to the
+/// sampling error of F. Independently, `emitted_landing` (the emitters' own
+/// form-factor rows) and `direct_received` estimate the same power when only
+/// emissive surfaces light the scene.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Energy {
-    /// π Σ Aᵢ Eᵢ.
+    /// π Σ Aᵢ Eᵢ: power emitted by emissive surfaces.
     pub emitted: [f64; 3],
+    /// π Σ Aᵢ Eᵢ Σⱼ Fᵢⱼ: the part of it that lands on a surface (shooting estimate).
+    pub emitted_landing: [f64; 3],
+    /// π Σ Aᵢ Dᵢ: power arriving directly from every source (gathering estimate).
+    pub direct_received: [f64; 3],
     /// π Σ Aᵢ (1 − ρᵢ) Hᵢ.
     pub absorbed: [f64; 3],
-    /// π Σ Aᵢ Lᵢ (1 − Σⱼ Fᵢⱼ): leaves the scene or hits back faces.
-    pub escaped: [f64; 3],
-    /// (emitted − absorbed − escaped) / emitted; ≈ 0 up to the sampling error of F.
+    /// π Σ Aᵢ Lᵢ (1 − Σⱼ Fᵢⱼ), Lᵢ = ρᵢ Hᵢ: reflected light that leaves the scene or hits back faces.
+    pub reflected_escaped: [f64; 3],
+    /// (direct_received − absorbed − reflected_escaped) / direct_received.
     pub relative_imbalance: [f64; 3],
 }
 

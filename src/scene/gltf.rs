@@ -275,6 +275,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             }
         }
         if let Some(light) = node.light() {
+            check_light_json(&ctx, &gltf.document, light.index())?;
             scene
                 .lights
                 .push(import_light(&ctx, &light, &world, &node_name)?);
@@ -780,6 +781,29 @@ fn decode_image(ctx: &Ctx, texture: &gltf::Texture, buffers: &[Vec<u8>]) -> Resu
         wrap_s: wrap(sampler.wrap_s()),
         wrap_t: wrap(sampler.wrap_t()),
     })
+}
+
+/// The `gltf` crate unwraps a spot light's `spot` object: refuse its absence here.
+fn check_light_json(ctx: &Ctx, doc: &gltf::Document, index: usize) -> Result<()> {
+    use gltf::json::extensions::scene::khr_lights_punctual::Type;
+    use gltf::json::validation::Checked;
+    let json = doc
+        .as_json()
+        .extensions
+        .as_ref()
+        .and_then(|e| e.khr_lights_punctual.as_ref())
+        .and_then(|l| l.lights.get(index));
+    let location = format!("extensions.KHR_lights_punctual.lights[{index}]");
+    match json {
+        Some(l) => match (&l.type_, &l.spot) {
+            (Checked::Valid(Type::Spot), None) => {
+                Err(ctx.invalid(location, "a spot light needs a `spot` object"))
+            }
+            (Checked::Invalid, _) => Err(ctx.invalid(location, "unknown light type")),
+            _ => Ok(()),
+        },
+        None => Err(ctx.invalid(location, "no such light")),
+    }
 }
 
 fn import_light(
