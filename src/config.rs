@@ -20,6 +20,8 @@ pub enum UvSource {
 pub enum FormFactorMethod {
     /// Cosine-distributed rays from each patch (Wallace et al. 1989 style Monte Carlo).
     Raycast,
+    /// Hemicube rasterisation at each patch centroid (Cohen & Greenberg 1985).
+    Hemicube,
 }
 
 /// How the radiosity system is solved.
@@ -28,6 +30,14 @@ pub enum FormFactorMethod {
 pub enum Solver {
     /// Jacobi iteration on the stored sparse F.
     Jacobi,
+    /// Gauss–Seidel iteration on the stored sparse F.
+    #[serde(rename = "gauss-seidel")]
+    #[value(name = "gauss-seidel")]
+    GaussSeidel,
+    /// Progressive refinement: shooting, rows computed on demand, O(n) memory.
+    Progressive,
+    /// Dense LU of (I − ρF): exact for the given F, O(n³); small scenes only.
+    Direct,
 }
 
 /// How emissive surfaces light the scene.
@@ -64,8 +74,12 @@ pub struct BakeConfig {
     pub uv: UvSource,
     /// Form-factor method.
     pub form_factors: FormFactorMethod,
+    /// Hemicube top-face resolution in pixels (8..=2048, even).
+    pub hemicube_resolution: u32,
     /// Solver.
     pub solver: Solver,
+    /// Largest patch count the `direct` solver accepts (its cost is O(n³), memory 8n² bytes).
+    pub direct_max_patches: u32,
     /// Seed of every random sequence (bakes are deterministic for a seed).
     pub seed: u64,
     /// Largest lightmap texel count; above it the texel density is lowered (with a warning).
@@ -96,7 +110,9 @@ impl BakeConfig {
             max_iterations: 200,
             uv: UvSource::Unwrap,
             form_factors: FormFactorMethod::Raycast,
+            hemicube_resolution: 128,
             solver: Solver::Jacobi,
+            direct_max_patches: 4096,
             seed: 0x5eed,
             max_texels: 16 << 20,
             direct_samples: 64,
@@ -127,6 +143,9 @@ impl BakeConfig {
         }
         if self.rays_per_patch < 16 || self.rays_per_patch > 1 << 20 {
             return bad("rays_per_patch", "must be in 16..=1048576");
+        }
+        if self.hemicube_resolution < 8 || self.hemicube_resolution > 2048 {
+            return bad("hemicube_resolution", "must be in 8..=2048");
         }
         if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
             return bad("tolerance", "must be a finite number > 0");

@@ -116,18 +116,21 @@ pub fn punctual_irradiance(light: &Light, p: Vec3, n: Vec3) -> Option<(Vec3, Vec
     }
 }
 
-/// Direct irradiance / π at a point, estimated with `samples` light samples
-/// and `samples` hemisphere samples (emitters and sky) plus one shadow ray
-/// per punctual light. Returns (value, rays cast).
+/// Direct irradiance / π over a texel: punctual lights exactly at its
+/// `centre` (point and normal; one shadow ray each), emitters and sky by
+/// one light sample and one hemisphere sample from each of `points`
+/// (positions spread over the texel, so the estimate is the texel's average).
+/// Returns (value, rays cast).
 pub fn direct_at(
     s: &Surfaces,
     lights: &Lights,
-    p: Vec3,
-    n: Vec3,
-    samples: u32,
+    centre: (Vec3, Vec3),
+    points: &[(Vec3, Vec3)],
     rng: &mut Stream,
 ) -> (Vec3, u64) {
     let g = s.geometry;
+    let samples = points.len() as u32;
+    let (p, n) = centre;
     let origin = offset_ray_origin(p, n);
     let mut h = Vec3::ZERO;
     let mut rays = 0u64;
@@ -154,7 +157,7 @@ pub fn direct_at(
     let inv_n = 1.0 / samples as f32;
     // Light-sampling pdf (solid angle) of the direction from `p` to the
     // point `q` of emitter `k` whose normal is `nq`.
-    let light_pdf = |k: usize, q: Vec3, nq: Vec3| -> f32 {
+    let light_pdf = |k: usize, p: Vec3, q: Vec3, nq: Vec3| -> f32 {
         let tri = lights.emitters[k] as usize;
         let d = q - p;
         let dist2 = d.length_squared();
@@ -167,6 +170,10 @@ pub fn direct_at(
 
     // Hemisphere (BRDF) samples: emitters with MIS weights, sky unweighted.
     for k in 0..samples {
+        // Positions paired with direction strata in reverse order, so the
+        // two stratifications do not line up.
+        let (p, n) = points[(samples - 1 - k) as usize];
+        let origin = offset_ray_origin(p, n);
         let dir = to_world(
             cosine_hemisphere(stratified(k, samples, rng.next_vec2())),
             n,
@@ -184,7 +191,7 @@ pub fn direct_at(
                 let le = s.scene.emission_at(mat, g.uv0_at(hit.tri, hit.u, hit.v));
                 let p_b = n.dot(dir) / pi;
                 let k = lights.emitters.partition_point(|&e| e < hit.tri);
-                let p_l = light_pdf(k, p + dir * hit.t, g.ng_ws[tri]);
+                let p_l = light_pdf(k, p, p + dir * hit.t, g.ng_ws[tri]);
                 h += le * (p_b / (p_b + p_l)) * inv_n;
             }
             _ => {}
@@ -199,6 +206,8 @@ pub fn direct_at(
         let total = lights.total_power();
         let shift = rng.next_vec2();
         for k in 0..samples {
+            let (p, n) = points[k as usize];
+            let origin = offset_ray_origin(p, n);
             let hs = hammersley(k, samples, shift);
             let u = hs.x * total;
             let e = lights
@@ -229,7 +238,7 @@ pub fn direct_at(
             let le = s
                 .scene
                 .emission_at(g.material[tri as usize], g.uv0_at(tri, bu, bv));
-            let p_l = light_pdf(e, q, nq);
+            let p_l = light_pdf(e, p, q, nq);
             let p_b = cos_p / pi;
             // f / p_l = L cos_p / π / p_l; balance weight p_l / (p_l + p_b).
             h += le * (cos_p / pi) / (p_l + p_b) * inv_n;
@@ -246,8 +255,8 @@ pub fn hammersley(k: u32, n: u32, shift: Vec2) -> Vec2 {
     p - p.floor()
 }
 
-/// Direct light at every texel, from points jittered over the texel (so
-/// shadow edges are antialiased). Returns (values per texel, rays cast).
+/// Direct light at every texel (see [`direct_at`]): area lights and sky
+/// averaged over the texel, punctual lights at its centroid. Returns (values per texel, rays cast).
 pub fn texels(
     s: &Surfaces,
     lights: &Lights,
@@ -265,9 +274,11 @@ pub fn texels(
             let mut rays = 0;
             for t in range {
                 let mut rng = Stream::new(seed, PURPOSE, t as u64);
-                let (p, ng) =
-                    s.sample_texel(t as u32, Vec2::splat(0.5) + (rng.next_vec2() - 0.5) * 0.999);
-                let (h, r) = direct_at(s, lights, p, ng, samples, &mut rng);
+                let centre = (s.texels.p_ws[t], s.texels.n_ws[t]);
+                let points: Vec<(Vec3, Vec3)> = (0..samples)
+                    .map(|k| s.sample_texel(t as u32, stratified(k, samples, rng.next_vec2())))
+                    .collect();
+                let (h, r) = direct_at(s, lights, centre, &points, &mut rng);
                 vals.push(h);
                 rays += r;
             }

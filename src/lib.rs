@@ -51,6 +51,7 @@ use geometry::Geometry;
 use glam::Vec3;
 use lightmap::Lightmaps;
 use patches::Patches;
+use rayon::prelude::*;
 use report::{Counts, Energy, InstanceReport, Report, StageTime};
 use scene::Scene;
 use solve::Solution;
@@ -71,8 +72,12 @@ pub struct Bake<'s> {
     pub texels: Texels,
     /// Patches.
     pub patches: Patches,
-    /// Form factors.
-    pub form_factors: FormFactors,
+    /// Form factors (None for progressive refinement, which stores none).
+    pub form_factors: Option<FormFactors>,
+    /// Σⱼ Fᵢⱼ per patch (NaN for patches that progressive refinement never shot).
+    pub row_sums: Vec<f32>,
+    /// Form-factor counters.
+    pub ff_stats: form_factors::FormFactorStats,
     /// Direct light (irradiance / π) per texel.
     pub direct: Vec<Vec3>,
     /// Direct light per patch (area-weighted mean of its texels').
@@ -142,7 +147,11 @@ pub fn bake<'s>(
     timer.end("texels");
 
     timer.begin("patches", 0);
-    let patches = patches::build(&texels, config.patch_texels);
+    let patches = patches::build(
+        &texels,
+        config.patch_texels,
+        1.0 / (atlas.texels_per_meter * atlas.texels_per_meter),
+    );
     timer.end("patches");
 
     timer.begin("bvh", 0);
@@ -156,10 +165,32 @@ pub fn bake<'s>(
         patches: &patches,
         rays: &rays,
     };
-    timer.begin("form_factors", patches.len() as u64);
     let advance = |n| progress.advance(n);
-    let form_factors =
-        form_factors::raycast::compute(&surfaces, config.rays_per_patch, config.seed, &advance);
+    let progressive = config.solver == config::Solver::Progressive;
+    if config.solver == config::Solver::Direct && patches.len() > config.direct_max_patches as usize
+    {
+        return Err(Error::Config {
+            key: "direct_max_patches".into(),
+            message: format!(
+                "the direct solver is O(n³) and refuses {} patches (limit {}); use jacobi, gauss-seidel or progressive, or coarser patches",
+                patches.len(),
+                config.direct_max_patches
+            ),
+        });
+    }
+    // Progressive refinement computes rows on demand: no matrix is stored.
+    timer.begin(
+        "form_factors",
+        if progressive { 0 } else { patches.len() as u64 },
+    );
+    let form_factors = (!progressive).then(|| match config.form_factors {
+        config::FormFactorMethod::Raycast => {
+            form_factors::raycast::compute(&surfaces, config.rays_per_patch, config.seed, &advance)
+        }
+        config::FormFactorMethod::Hemicube => {
+            form_factors::hemicube::compute(&surfaces, config.hemicube_resolution, &advance)
+        }
+    });
     timer.end("form_factors");
 
     timer.begin("direct", texels.len() as u64);
@@ -186,7 +217,6 @@ pub fn bake<'s>(
 
     // Emission sampled as direct light is in D already; only the other
     // emitters' emission enters the solve: L = E' + ρ H, H = D + F L.
-    timer.begin("solve", config.max_iterations as u64);
     let solve_emission: Vec<Vec3> = (0..patches.len())
         .map(|i| {
             let t = patches.texels_of(i)[0] as usize;
@@ -198,18 +228,87 @@ pub fn bake<'s>(
             }
         })
         .collect();
-    let solution = solve::jacobi::solve(
-        &form_factors.matrix,
-        &solve_emission,
-        &patches.albedo,
-        &patch_direct,
-        config.tolerance,
-        config.max_iterations,
-        &|n| progress.advance(n),
+    let system = solve::System {
+        emission: &solve_emission,
+        albedo: &patches.albedo,
+        direct: &patch_direct,
+        area: &patches.area,
+    };
+    let max_shots = config.max_iterations as u64 * patches.len() as u64;
+    timer.begin(
+        "solve",
+        if progressive {
+            max_shots
+        } else {
+            config.max_iterations as u64
+        },
     );
-    if solution.residual >= config.tolerance {
+    let (solution, row_sums, ff_stats) = match &form_factors {
+        Some(ff) => {
+            let f = &ff.matrix;
+            let solution = match config.solver {
+                config::Solver::GaussSeidel => solve::gauss_seidel::solve(
+                    f,
+                    &system,
+                    config.tolerance,
+                    config.max_iterations,
+                    &advance,
+                ),
+                config::Solver::Direct => solve::dense::solve(f, &system).ok_or_else(|| {
+                    Error::Limit(
+                        "the radiosity matrix is singular (an albedo of 1 in a closed scene?)"
+                            .into(),
+                    )
+                })?,
+                _ => solve::jacobi::solve(
+                    f,
+                    &system,
+                    config.tolerance,
+                    config.max_iterations,
+                    &advance,
+                ),
+            };
+            (solution, ff.row_sums(), ff.stats.clone())
+        }
+        None => {
+            let rows = form_factors::OnDemand::new(&surfaces, config);
+            let p =
+                solve::progressive::solve(&rows, &system, config.tolerance, max_shots, &advance);
+            // Shooting scales a shooter's row by Aᵢ/Aⱼ (reciprocity), which
+            // is noisy for small receivers (and biased for the hemicube's
+            // point-sampled rows). Two gathering sweeps from each patch's own
+            // row, L ← E + ρ (D + F L), put the accuracy back on the
+            // receiving side (each divides the shooting error by ~1/ρ);
+            // rows are made and dropped, so memory stays O(n).
+            let mut solution = p.solution;
+            let mut gathered: Vec<(Vec3, f32)> = Vec::new();
+            for _ in 0..2 {
+                gathered = (0..patches.len())
+                    .into_par_iter()
+                    .map(|j| {
+                        let row = rows.row(j);
+                        let h = row
+                            .iter()
+                            .map(|&(k, f)| solution.radiance[k as usize] * f)
+                            .sum::<Vec3>();
+                        (system.direct[j] + h, row.iter().map(|e| e.1).sum())
+                    })
+                    .collect();
+                solution.irradiance = gathered.iter().map(|g| g.0).collect();
+                solution.radiance = (0..patches.len())
+                    .map(|j| system.emission[j] + system.albedo[j] * solution.irradiance[j])
+                    .collect();
+            }
+            (
+                solution,
+                gathered.iter().map(|g| g.1).collect(),
+                rows.stats(),
+            )
+        }
+    };
+    if solution.residual >= config.tolerance && config.solver != config::Solver::Direct {
         warnings.push(format!(
-            "the solver stopped at max_iterations = {} with residual {:.2e} above tolerance {:.2e}",
+            "the solver stopped at its limit (max_iterations = {}) with residual {:.2e} above tolerance {:.2e}",
             config.max_iterations, solution.residual, config.tolerance
         ));
     }
@@ -240,6 +339,8 @@ pub fn bake<'s>(
         texels,
         patches,
         form_factors,
+        row_sums,
+        ff_stats,
         direct: texel_direct,
         patch_direct,
         solution,
@@ -325,7 +426,7 @@ impl Bake<'_> {
     pub fn energy(&self) -> Energy {
         let p = &self.patches;
         let s = &self.solution;
-        let rows = self.form_factors.row_sums();
+        let rows = &self.row_sums;
         let pi = std::f64::consts::PI;
         let mut e = Energy::default();
         for (i, row_sum) in rows.iter().enumerate() {
@@ -354,7 +455,7 @@ impl Bake<'_> {
     /// The report for this bake of `scene_path`.
     pub fn report(&self, scene_path: &str) -> Report {
         let st = &self.scene.stats;
-        let ff = &self.form_factors.stats;
+        let ff = &self.ff_stats;
         Report {
             radbake_version: env!("CARGO_PKG_VERSION").into(),
             scene: scene_path.into(),
@@ -376,12 +477,13 @@ impl Bake<'_> {
                 texels_per_meter: self.atlas.texels_per_meter,
                 texels: self.texels.len() as u64,
                 patches: self.patches.len() as u64,
-                nonzeros: self.form_factors.nnz() as u64,
+                nonzeros: self.form_factors.as_ref().map_or(0, |f| f.nnz() as u64),
                 rays: ff.rays + self.direct_rays,
                 rays_escaped: ff.escaped,
                 rays_back_faces: ff.back_faces,
                 rays_unmapped: ff.unmapped,
                 iterations: self.solution.iterations as u64,
+                shots: self.solution.shots,
                 residual: self.solution.residual,
             },
             energy: self.energy(),

@@ -25,8 +25,28 @@ pub struct Lightmaps {
     pub texel_values: Vec<Vec3>,
 }
 
-/// Every texel's value interpolated from per-patch values.
+/// Every texel's value interpolated from per-patch values, then shifted per
+/// patch so the area-weighted mean over a patch's texels equals the patch's
+/// value: interpolation moves light around within a patch but neither makes
+/// nor loses any (clamped at 0).
 pub fn interpolate(texels: &Texels, patches: &Patches, patch_values: &[Vec3]) -> Vec<Vec3> {
+    let mut values = interpolate_bilinear(texels, patches, patch_values);
+    for (i, target) in patch_values.iter().enumerate() {
+        let ids = patches.texels_of(i);
+        let mean: Vec3 = ids
+            .iter()
+            .map(|&t| values[t as usize] * texels.area[t as usize])
+            .sum::<Vec3>()
+            / patches.area[i];
+        let shift = *target - mean;
+        for &t in ids {
+            values[t as usize] = (values[t as usize] + shift).max(Vec3::ZERO);
+        }
+    }
+    values
+}
+
+fn interpolate_bilinear(texels: &Texels, patches: &Patches, patch_values: &[Vec3]) -> Vec<Vec3> {
     let k = patches.block as f32;
     (0..texels.len())
         .into_par_iter()

@@ -65,9 +65,15 @@ struct BakeArgs {
     /// Form-factor method [default: raycast].
     #[arg(long, value_enum)]
     form_factors: Option<FormFactorMethod>,
+    /// Hemicube top-face resolution in pixels [default: 128].
+    #[arg(long)]
+    hemicube_resolution: Option<u32>,
     /// Solver [default: jacobi].
     #[arg(long, value_enum)]
     solver: Option<Solver>,
+    /// Largest patch count the direct solver accepts [default: 4096].
+    #[arg(long)]
+    direct_max_patches: Option<u32>,
     /// Seed of all random sequences [default: 24301].
     #[arg(long)]
     seed: Option<u64>,

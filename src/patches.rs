@@ -64,19 +64,72 @@ impl Patches {
     }
 }
 
-/// Groups `texels` into `k × k` blocks per chart.
-pub fn build(texels: &Texels, k: u32) -> Patches {
+/// Groups `texels` into `k × k` blocks per chart. A block covering less
+/// than half a full block (`full_texel_area` is a whole texel's world area)
+/// joins its largest full neighbour in the same chart, so no patch is a
+/// sliver: slivers make noisy shooting targets and put a hemicube's eye on
+/// the very edge of a face.
+pub fn build(texels: &Texels, k: u32, full_texel_area: f32) -> Patches {
     let k = k.max(1);
+    let block_of = |t: usize| {
+        let [x, y] = texels.xy[t];
+        (texels.instance[t], texels.chart[t], x / k, y / k)
+    };
+    // Block areas, in order of first appearance.
+    let mut block_area: HashMap<BlockKey, f32> = HashMap::new();
+    let mut order: Vec<BlockKey> = Vec::new();
+    for t in 0..texels.len() {
+        let key = block_of(t);
+        let a = block_area.entry(key).or_insert_with(|| {
+            order.push(key);
+            0.0
+        });
+        *a += texels.area[t];
+    }
+    let threshold = 0.5 * (k * k) as f32 * full_texel_area;
+    let mut target: HashMap<BlockKey, BlockKey> = HashMap::new();
+    for &key in &order {
+        if block_area[&key] >= threshold {
+            continue;
+        }
+        let (inst, chart, bx, by) = key;
+        let mut best: Option<(f32, BlockKey)> = None;
+        for (dx, dy) in [
+            (-1i64, 0i64),
+            (1, 0),
+            (0, -1),
+            (0, 1),
+            (-1, -1),
+            (1, -1),
+            (-1, 1),
+            (1, 1),
+        ] {
+            let (nx, ny) = (bx as i64 + dx, by as i64 + dy);
+            if nx < 0 || ny < 0 {
+                continue;
+            }
+            let nk = (inst, chart, nx as u32, ny as u32);
+            if let Some(&a) = block_area.get(&nk) {
+                if a >= threshold && best.is_none_or(|(ba, _)| a > ba) {
+                    best = Some((a, nk));
+                }
+            }
+        }
+        if let Some((_, nk)) = best {
+            target.insert(key, nk);
+        }
+    }
     let mut by_key: HashMap<BlockKey, PatchId> = HashMap::new();
     let mut keys: Vec<BlockKey> = Vec::new();
     let mut of_texel = Vec::with_capacity(texels.len());
     for t in 0..texels.len() {
-        let [x, y] = texels.xy[t];
-        let key = (texels.instance[t], texels.chart[t], x / k, y / k);
+        let block = block_of(t);
+        let key = target.get(&block).copied().unwrap_or(block);
         let id = *by_key.entry(key).or_insert_with(|| {
             keys.push(key);
             PatchId(keys.len() as u32 - 1)
         });
+        by_key.insert(block, id);
         of_texel.push(id);
     }
     let n = keys.len();
@@ -147,7 +200,7 @@ mod tests {
             t.albedo.push(Vec3::splat(0.5));
             t.emission.push(Vec3::ZERO);
         }
-        let p = build(&t, 2);
+        let p = build(&t, 2, 0.25);
         // (0,0),(1,0) chart 0 | (2,0),(3,1) chart 0 | (1,1) chart 1
         assert_eq!(p.len(), 3);
         assert_eq!(p.texels_of(0), &[0, 1]);

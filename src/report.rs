@@ -59,6 +59,8 @@ pub struct Counts {
     pub rays_unmapped: u64,
     /// Solver iterations.
     pub iterations: u64,
+    /// Progressive refinement shots.
+    pub shots: u64,
     /// Solver's final relative residual.
     pub residual: f32,
 }

@@ -84,23 +84,47 @@ impl Surfaces<'_> {
 
     /// Where a ray from `origin` along `dir` lands.
     pub fn trace(&self, origin: Vec3, dir: Vec3) -> (Landing, Option<Hit>) {
-        let Some(hit) = self.rays.closest_hit(origin, dir, f32::INFINITY) else {
-            return (Landing::Escaped, None);
-        };
-        let g = self.geometry;
-        let tri = hit.tri as usize;
-        let front = g.ng_ws[tri].dot(dir) < 0.0;
-        if !front && !self.scene.materials[g.material[tri] as usize].double_sided {
-            return (Landing::BackFace, Some(hit));
+        match self.rays.closest_hit(origin, dir, f32::INFINITY) {
+            Some(hit) => (self.land(hit.tri, hit.u, hit.v, dir), Some(hit)),
+            None => (Landing::Escaped, None),
         }
-        let uv_lm = g.uv_lm_at(hit.tri, hit.u, hit.v);
+    }
+
+    /// The texel at barycentrics (u, v) of triangle `tri`, reached along `dir`.
+    pub fn land(&self, tri: u32, u: f32, v: f32, dir: Vec3) -> Landing {
+        let g = self.geometry;
+        let t = tri as usize;
+        let front = g.ng_ws[t].dot(dir) < 0.0;
+        if !front && !self.scene.materials[g.material[t] as usize].double_sided {
+            return Landing::BackFace;
+        }
+        let uv_lm = g.uv_lm_at(tri, u, v);
         match self
             .texels
-            .lookup(g.page[tri], uv_lm, g.instance[tri], g.chart[tri])
+            .lookup(g.page[t], uv_lm, g.instance[t], g.chart[t])
         {
-            Some(t) => (Landing::Texel(t), Some(hit)),
-            None => (Landing::Unmapped, Some(hit)),
+            Some(texel) => Landing::Texel(texel),
+            None => Landing::Unmapped,
         }
+    }
+
+    /// Where the ray from `origin` along `dir` meets the plane of triangle
+    /// `tri` (known to be the visible one, e.g. from a z-buffer), clamped
+    /// onto the triangle.
+    pub fn resolve(&self, tri: u32, origin: Vec3, dir: Vec3) -> Landing {
+        let p = &self.geometry.p_ws[tri as usize];
+        let n = (p[1] - p[0]).cross(p[2] - p[0]);
+        let denom = n.dot(dir);
+        if denom == 0.0 {
+            return Landing::Unmapped;
+        }
+        let q = origin + dir * (n.dot(p[0] - origin) / denom);
+        let inv = 1.0 / n.length_squared();
+        let u = (q - p[0]).cross(p[2] - p[0]).dot(n) * inv;
+        let v = (p[1] - p[0]).cross(q - p[0]).dot(n) * inv;
+        let w = glam::Vec3::new(1.0 - u - v, u, v).max(glam::Vec3::ZERO);
+        let w = w / w.element_sum();
+        self.land(tri, w.y, w.z, dir)
     }
 }
 

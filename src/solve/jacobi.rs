@@ -3,7 +3,7 @@
 //! of F sum to ≤ 1 the iteration contracts (Cohen & Wallace 1993, ch. 5).
 //! Rows are summed in column order, so results do not depend on threads.
 
-use super::Solution;
+use super::{Solution, System};
 use glam::Vec3;
 use nalgebra_sparse::CsrMatrix;
 use rayon::prelude::*;
@@ -25,41 +25,47 @@ pub fn spmv(f: &CsrMatrix<f32>, x: &[Vec3]) -> Vec<Vec3> {
         .collect()
 }
 
+/// Relative change Σ|a − b| / Σ|a| (0 when a is all zero).
+pub fn relative_change(a: &[Vec3], b: &[Vec3]) -> f32 {
+    let (mut change, mut total) = (0.0f64, 0.0f64);
+    for (x, y) in a.iter().zip(b) {
+        change += (*x - *y).abs().element_sum() as f64;
+        total += x.abs().element_sum() as f64;
+    }
+    if total > 0.0 {
+        (change / total) as f32
+    } else {
+        0.0
+    }
+}
+
+/// H = D + F L for the final radiance.
+pub fn gather(f: &CsrMatrix<f32>, sys: &System, radiance: &[Vec3]) -> Vec<Vec3> {
+    spmv(f, radiance)
+        .iter()
+        .zip(sys.direct)
+        .map(|(h, d)| *h + *d)
+        .collect()
+}
+
 /// Solves by Jacobi iteration until Σ|ΔL|/Σ|L| < `tolerance` or
-/// `max_iterations`. `direct` is D (may be all zero). `advance` is called once
-/// per iteration.
+/// `max_iterations`. `advance` is called once per iteration.
 pub fn solve(
     f: &CsrMatrix<f32>,
-    emission: &[Vec3],
-    albedo: &[Vec3],
-    direct: &[Vec3],
+    sys: &System,
     tolerance: f32,
     max_iterations: u32,
     advance: &dyn Fn(u64),
 ) -> Solution {
-    let mut radiance: Vec<Vec3> = emission
-        .iter()
-        .zip(albedo)
-        .zip(direct)
-        .map(|((e, r), d)| *e + *r * *d)
-        .collect();
+    let mut radiance = sys.initial_radiance();
     let mut iterations = 0;
     let mut residual = 0.0f32;
     while iterations < max_iterations {
         let h = spmv(f, &radiance);
         let next: Vec<Vec3> = (0..radiance.len())
-            .map(|i| emission[i] + albedo[i] * (h[i] + direct[i]))
+            .map(|i| sys.emission[i] + sys.albedo[i] * (h[i] + sys.direct[i]))
             .collect();
-        let (mut change, mut total) = (0.0f64, 0.0f64);
-        for (a, b) in next.iter().zip(&radiance) {
-            change += ((*a - *b).abs().element_sum()) as f64;
-            total += (a.abs().element_sum()) as f64;
-        }
-        residual = if total > 0.0 {
-            (change / total) as f32
-        } else {
-            0.0
-        };
+        residual = relative_change(&next, &radiance);
         radiance = next;
         iterations += 1;
         advance(1);
@@ -67,13 +73,13 @@ pub fn solve(
             break;
         }
     }
-    let h = spmv(f, &radiance);
-    let irradiance = h.iter().zip(direct).map(|(h, d)| *h + *d).collect();
+    let irradiance = gather(f, sys, &radiance);
     Solution {
         radiance,
         irradiance,
         iterations,
         residual,
+        shots: 0,
     }
 }
 
@@ -88,7 +94,13 @@ mod tests {
             .unwrap();
         let e = [Vec3::ONE, Vec3::ZERO];
         let rho = [Vec3::splat(0.5), Vec3::splat(0.5)];
-        let s = solve(&f, &e, &rho, &[Vec3::ZERO; 2], 1e-7, 1000, &|_| {});
+        let sys = System {
+            emission: &e,
+            albedo: &rho,
+            direct: &[Vec3::ZERO; 2],
+            area: &[1.0; 2],
+        };
+        let s = solve(&f, &sys, 1e-7, 1000, &|_| {});
         // L0 = 1 + 0.5 L1, L1 = 0.5 L0 → L0 = 4/3, L1 = 2/3.
         assert!((s.radiance[0].x - 4.0 / 3.0).abs() < 1e-5);
         assert!((s.radiance[1].x - 2.0 / 3.0).abs() < 1e-5);

@@ -7,9 +7,52 @@
 //! lightmap texel stores — and Dᵢ the direct irradiance / π from punctual
 //! lights and sky (zero when there are none).
 
+pub mod dense;
+pub mod gauss_seidel;
 pub mod jacobi;
+pub mod progressive;
 
 use glam::Vec3;
+
+/// The system's data per patch: L = E + ρ H, H = D + F L.
+#[derive(Clone, Copy, Debug)]
+pub struct System<'a> {
+    /// Emitted radiance E entering the solve.
+    pub emission: &'a [Vec3],
+    /// Albedo ρ.
+    pub albedo: &'a [Vec3],
+    /// Direct light D (irradiance / π).
+    pub direct: &'a [Vec3],
+    /// Patch areas (progressive refinement's reciprocity and power).
+    pub area: &'a [f32],
+}
+
+impl System<'_> {
+    /// Number of patches.
+    pub fn len(&self) -> usize {
+        self.emission.len()
+    }
+
+    /// True when there are no patches.
+    pub fn is_empty(&self) -> bool {
+        self.emission.is_empty()
+    }
+
+    /// L⁽⁰⁾ = E + ρ D: emission and the first bounce of direct light.
+    pub fn initial_radiance(&self) -> Vec<Vec3> {
+        (0..self.len())
+            .map(|i| self.emission[i] + self.albedo[i] * self.direct[i])
+            .collect()
+    }
+}
+
+/// Shooting coefficients for progressive refinement: `row(i)` lists
+/// (j, Sᵢⱼ) with ΔHⱼ = Sᵢⱼ ΔLᵢ, i.e. column i of F (Sᵢⱼ = Fⱼᵢ), or by
+/// reciprocity Fᵢⱼ Aᵢ / Aⱼ when F is computed from the shooter on demand.
+pub trait ShootingRows: Sync {
+    /// Coefficients of shooter `i`, and Σⱼ Fᵢⱼ (the fraction of i's light that lands).
+    fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32);
+}
 
 /// The solved radiosity system.
 #[derive(Clone, Debug, Default)]
@@ -20,6 +63,9 @@ pub struct Solution {
     pub irradiance: Vec<Vec3>,
     /// Iterations run.
     pub iterations: u32,
-    /// Relative change of L in the last iteration (Σ|ΔL| / Σ|L|).
+    /// Relative change of L in the last iteration (Σ|ΔL| / Σ|L|); for
+    /// progressive refinement, the unshot fraction of the power.
     pub residual: f32,
+    /// Progressive refinement: shots fired.
+    pub shots: u64,
 }
