@@ -201,6 +201,15 @@ fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
     let t = Instant::now();
     let mut written =
         radbake::output::write_lightmaps(&args.out, &bake.lightmaps).map_err(lib_err)?;
+    let stem = args
+        .scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    written.extend(
+        radbake::output::write_engine_outputs(&args.out, &stem, &scene, &bake.atlas, &bake.lightmaps)
+            .map_err(lib_err)?,
+    );
     report.stages.push(StageTime {
         stage: "write".into(),
         seconds: t.elapsed().as_secs_f64(),

@@ -3,7 +3,11 @@
 //! the same folder and renamed over the target, so a killed bake never
 //! leaves a half-written file where a good one was.
 
+pub mod baked;
+
+use crate::atlas::Atlas;
 use crate::error::{Error, Result};
+use crate::scene::Scene;
 use crate::lightmap::Lightmaps;
 use crate::report::Report;
 use crate::scene::texture::linear_to_srgb;
@@ -140,6 +144,69 @@ pub fn write_report(out_dir: &Path, report: &Report) -> Result<PathBuf> {
     })?;
     write_bytes_atomic(&json, &text)?;
     Ok(json)
+}
+
+/// Writes the engine outputs into `out_dir`: `<stem>.baked.glb` (see
+/// [`baked`]), `lightmap_<page>_srgb.png` (value / scale, sRGB-encoded,
+/// the same images the .glb embeds) and `manifest.json` (per instance: the
+/// lightmap files, `uv_rect` in Bevy's convention, the PNG scale and the
+/// `MOZ_lightmap` intensity). Returns the paths written.
+///
+/// # Errors
+/// [`Error::Io`] / [`Error::Encode`].
+pub fn write_engine_outputs(out_dir: &Path, stem: &str, scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io { path: out_dir.to_path_buf(), source })?;
+    let mut written = Vec::new();
+    let mut pages = Vec::new();
+    for page in 0..lightmaps.pages.len() {
+        let (png, scale) = baked::encode_png(lightmaps, page);
+        let name = format!("lightmap_{page}_srgb.png");
+        write_bytes_atomic(&out_dir.join(&name), &png)?;
+        written.push(out_dir.join(&name));
+        pages.push(serde_json::json!({
+            "page": page,
+            "exr": format!("lightmap_{page}.exr"),
+            "png": name,
+            "png_encoding": "srgb",
+            "png_scale": scale,
+            "moz_lightmap_intensity": std::f32::consts::PI * scale,
+        }));
+    }
+    let glb_name = format!("{stem}.baked.glb");
+    if scene.source.is_some() {
+        let glb = baked::baked_glb(scene, atlas, lightmaps, &glb_name)?;
+        write_bytes_atomic(&out_dir.join(&glb_name), &glb)?;
+        written.push(out_dir.join(&glb_name));
+    }
+    let instances: Vec<serde_json::Value> = scene
+        .instances
+        .iter()
+        .enumerate()
+        .map(|(i, inst)| {
+            let r = atlas.instances[i];
+            serde_json::json!({
+                "node": inst.node,
+                "node_index": inst.node_index,
+                "mesh": scene.meshes[inst.mesh as usize].name,
+                "page": r.page,
+                "uv_rect": [r.min[0], r.min[1], r.max[0], r.max[1]],
+            })
+        })
+        .collect();
+    let manifest = serde_json::json!({
+        "radbake_version": env!("CARGO_PKG_VERSION"),
+        "convention": "a texel holds incident irradiance / pi (linear RGB): outgoing radiance = albedo * texel + emission",
+        "uv": "TEXCOORD_1 in [0,1] per instance; atlas uv = mix(uv_rect.xy, uv_rect.zw, TEXCOORD_1); (0,0) is the top-left texel corner",
+        "png_decoding": "value = srgb_to_linear(png) * png_scale",
+        "baked_gltf": if scene.source.is_some() { serde_json::json!(glb_name) } else { serde_json::Value::Null },
+        "pages": pages,
+        "instances": instances,
+    });
+    let path = out_dir.join("manifest.json");
+    let text = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::Encode { path: path.clone(), message: e.to_string() })?;
+    write_bytes_atomic(&path, &text)?;
+    written.push(path);
+    Ok(written)
 }
 
 #[cfg(test)]

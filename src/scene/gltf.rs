@@ -191,10 +191,51 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             e.to_string()
         },
     })?;
-    let buffers = load_buffers(&ctx, &gltf)?;
+    let (buffers, mut files) = load_buffers(&ctx, &gltf)?;
     check_accessors(&ctx, &gltf.document, &buffers)?;
 
     let mut scene = Scene::default();
+    // The document as written (for the baked glTF's round trip) and the
+    // bytes of every image it names.
+    let json_bytes: Vec<u8> = if bytes.starts_with(b"glTF") {
+        gltf::Glb::from_slice(&bytes)
+            .map(|g| g.json.into_owned())
+            .map_err(|e| Error::Parse {
+                path: path.to_path_buf(),
+                message: e.to_string(),
+            })?
+    } else {
+        bytes.clone()
+    };
+    let json: serde_json::Value = serde_json::from_slice(&json_bytes).map_err(|e| Error::Parse {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let mut images = Vec::new();
+    for image in gltf.document.images() {
+        let location = format!("images[{}]", image.index());
+        images.push(match image.source() {
+            gltf::image::Source::View { view, mime_type } => {
+                let data = &buffers[view.buffer().index()];
+                Some((data[view.offset()..view.offset() + view.length()].to_vec(), mime_type.to_owned()))
+            }
+            gltf::image::Source::Uri { uri, mime_type } => {
+                let data = match ctx.data_uri(uri, &location)? {
+                    Some(d) => d,
+                    None => {
+                        let file = ctx.resolve_uri(uri, &location)?;
+                        let d = ctx.read_limited(&file, &location)?;
+                        files.push(file);
+                        d
+                    }
+                };
+                let mime = mime_type
+                    .map(str::to_owned)
+                    .unwrap_or_else(|| if data.starts_with(b"\x89PNG") { "image/png".into() } else { "image/jpeg".into() });
+                Some((data, mime))
+            }
+        });
+    }
     let mut image_cache: HashMap<usize, u32> = HashMap::new();
     for material in gltf.document.materials() {
         let m = import_material(&ctx, &material, &buffers, &mut scene, &mut image_cache)?;
@@ -300,11 +341,19 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             message: "the scene has no triangles to bake".into(),
         });
     }
+    scene.source = Some(super::SourceDocument {
+        json,
+        buffers,
+        images,
+        files,
+    });
     Ok(scene)
 }
 
-fn load_buffers(ctx: &Ctx, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>> {
+/// Every buffer's bytes, and the external files read.
+fn load_buffers(ctx: &Ctx, gltf: &gltf::Gltf) -> Result<(Vec<Vec<u8>>, Vec<PathBuf>)> {
     let mut out = Vec::new();
+    let mut files = Vec::new();
     for buffer in gltf.document.buffers() {
         let location = format!("buffers[{}]", buffer.index());
         let data = match buffer.source() {
@@ -318,7 +367,9 @@ fn load_buffers(ctx: &Ctx, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>> {
                 Some(d) => d,
                 None => {
                     let file = ctx.resolve_uri(uri, &location)?;
-                    ctx.read_limited(&file, &location)?
+                    let d = ctx.read_limited(&file, &location)?;
+                    files.push(file);
+                    d
                 }
             },
         };
@@ -334,7 +385,7 @@ fn load_buffers(ctx: &Ctx, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>> {
         }
         out.push(data);
     }
-    Ok(out)
+    Ok((out, files))
 }
 
 /// Checks a byte range `offset .. offset + len` against `size`.
@@ -616,12 +667,14 @@ fn import_mesh(
                     out.normals.push(n);
                     out.uv0.push(uv0[i as usize]);
                     uv1.push(prim_uv1.as_ref().map_or(Vec2::ZERO, |u| u[i as usize]));
+                    out.vertex_source.push(i);
                 }
                 out.triangles.push([v, v + 1, v + 2]);
             } else {
                 out.triangles.push(t.map(|i| base + i));
             }
             out.triangle_material.push(material);
+            out.triangle_primitive.push(prim.index() as u32);
         }
         if !flat {
             let normals = normals.unwrap_or_default();
@@ -630,6 +683,7 @@ fn import_mesh(
                 .extend(normals.iter().map(|n| n.normalize_or(Vec3::Y)));
             out.uv0.extend_from_slice(&uv0);
             uv1.extend(prim_uv1.clone().unwrap_or_else(|| vec![Vec2::ZERO; vcount]));
+            out.vertex_source.extend(0..vcount as u32);
         }
         all_have_uv1 &= prim_uv1.is_some();
     }

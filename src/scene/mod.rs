@@ -32,6 +32,10 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
     /// Material index (into [`Scene::materials`]) per triangle.
     pub triangle_material: Vec<u32>,
+    /// glTF primitive index (within the mesh) of each triangle.
+    pub triangle_primitive: Vec<u32>,
+    /// Index of each vertex in its primitive's own attribute arrays.
+    pub vertex_source: Vec<u32>,
 }
 
 /// One placement of a mesh by a node: each instance gets its own lightmap
@@ -178,9 +182,25 @@ pub struct ImportStats {
     pub skipped_primitives: u64,
 }
 
+/// The file as written, kept for outputs that round-trip it (the baked glTF)
+/// and for the bake's content hash.
+#[derive(Clone, Debug, Default)]
+pub struct SourceDocument {
+    /// The glTF JSON document.
+    pub json: serde_json::Value,
+    /// Every buffer's bytes.
+    pub buffers: Vec<Vec<u8>>,
+    /// Every image's encoded bytes and MIME type.
+    pub images: Vec<Option<(Vec<u8>, String)>>,
+    /// External files read (buffers, images), resolved.
+    pub files: Vec<std::path::PathBuf>,
+}
+
 /// The imported scene.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
+    /// The source document (None for scenes built in code).
+    pub source: Option<SourceDocument>,
     /// Meshes in local space.
     pub meshes: Vec<Mesh>,
     /// Node instances of the meshes.

@@ -1,0 +1,417 @@
+//! The baked glTF: the input document, round-tripped, with lightmaps.
+//!
+//! - Every baked primitive gets `TEXCOORD_1` (its vertices split at chart
+//!   seams: each output vertex copies all attributes, morph targets
+//!   included, of the input vertex it came from) and new indices.
+//! - Lightmap pages are embedded as PNG textures (see [`encode_png`]).
+//! - Each material that is lightmapped references its page through the
+//!   `MOZ_lightmap` extension (`index`, `texCoord: 1`, `intensity`), whose
+//!   `KHR_texture_transform` maps the instance's `[0, 1]` UVs to its atlas
+//!   rectangle. Instances of one mesh get mesh and material copies (sharing
+//!   every accessor) so each can carry its own rectangle.
+//! - Everything else (nodes, animations, skins, extras, other extensions)
+//!   is kept; all buffers and images are packed into the GLB's one binary
+//!   chunk.
+
+use crate::atlas::Atlas;
+use crate::error::{Error, Result};
+use crate::lightmap::Lightmaps;
+use crate::scene::texture::linear_to_srgb;
+use crate::scene::Scene;
+use serde_json::{json, Value};
+use std::collections::HashMap;
+
+/// A lightmap page as an 8-bit sRGB PNG of value / scale, and the scale
+/// (the page's largest value). Decoding: value = srgb_to_linear(png) × scale.
+pub fn encode_png(lightmaps: &Lightmaps, page: usize) -> (Vec<u8>, f32) {
+    let values = &lightmaps.pages[page];
+    let scale = values.iter().map(|v| v.max_element()).fold(0.0f32, f32::max).max(1e-8);
+    let img = image::RgbImage::from_fn(lightmaps.width, lightmaps.height, |x, y| {
+        let v = values[(y * lightmaps.width + x) as usize] / scale;
+        let c = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
+        image::Rgb([c(v.x), c(v.y), c(v.z)])
+    });
+    let mut bytes = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
+        .expect("PNG encoding to memory cannot fail");
+    (bytes, scale)
+}
+
+/// Bytes per component of a glTF `componentType`.
+fn component_size(ct: u64) -> Option<usize> {
+    match ct {
+        5120 | 5121 => Some(1),
+        5122 | 5123 => Some(2),
+        5125 | 5126 => Some(4),
+        _ => None,
+    }
+}
+
+/// Components of a glTF accessor `type`.
+fn type_count(t: &str) -> Option<usize> {
+    Some(match t {
+        "SCALAR" => 1,
+        "VEC2" => 2,
+        "VEC3" => 3,
+        "VEC4" | "MAT2" => 4,
+        "MAT3" => 9,
+        "MAT4" => 16,
+        _ => return None,
+    })
+}
+
+/// The packed binary being built, and the document's new views/accessors.
+struct Builder {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Builder {
+    fn align(&mut self) {
+        while self.bin.len() % 4 != 0 {
+            self.bin.push(0);
+        }
+    }
+
+    fn view(&mut self, bytes: &[u8], stride: Option<usize>, target: Option<u32>) -> usize {
+        self.align();
+        let mut v = json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()});
+        if let Some(s) = stride {
+            v["byteStride"] = json!(s);
+        }
+        if let Some(t) = target {
+            v["target"] = json!(t);
+        }
+        self.bin.extend_from_slice(bytes);
+        self.views.push(v);
+        self.views.len() - 1
+    }
+}
+
+/// Reads every element of accessor `a` as raw bytes (sparse applied).
+fn accessor_elements(doc: &Value, bin: &[u8], view_offsets: &[usize], a: usize) -> Option<(Vec<u8>, usize, usize)> {
+    let acc = doc["accessors"].get(a)?;
+    let cs = component_size(acc["componentType"].as_u64()?)?;
+    let tc = type_count(acc["type"].as_str()?)?;
+    let elem = cs * tc;
+    let count = acc["count"].as_u64()? as usize;
+    let mut out = vec![0u8; elem * count];
+    if let Some(v) = acc.get("bufferView").and_then(Value::as_u64) {
+        let view = &doc["bufferViews"][v as usize];
+        let stride = view["byteStride"].as_u64().map_or(elem, |s| s as usize);
+        let start = view_offsets[v as usize] + acc["byteOffset"].as_u64().unwrap_or(0) as usize;
+        for k in 0..count {
+            let src = start + k * stride;
+            out[k * elem..(k + 1) * elem].copy_from_slice(bin.get(src..src + elem)?);
+        }
+    }
+    if let Some(sp) = acc.get("sparse") {
+        let n = sp["count"].as_u64()? as usize;
+        let iv = sp["indices"]["bufferView"].as_u64()? as usize;
+        let ics = component_size(sp["indices"]["componentType"].as_u64()?)?;
+        let istart = view_offsets[iv] + sp["indices"]["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let vv = sp["values"]["bufferView"].as_u64()? as usize;
+        let vstart = view_offsets[vv] + sp["values"]["byteOffset"].as_u64().unwrap_or(0) as usize;
+        for k in 0..n {
+            let ib = bin.get(istart + k * ics..istart + (k + 1) * ics)?;
+            let idx = match ics {
+                1 => ib[0] as usize,
+                2 => u16::from_le_bytes([ib[0], ib[1]]) as usize,
+                _ => u32::from_le_bytes([ib[0], ib[1], ib[2], ib[3]]) as usize,
+            };
+            let src = bin.get(vstart + k * elem..vstart + (k + 1) * elem)?;
+            out.get_mut(idx * elem..(idx + 1) * elem)?.copy_from_slice(src);
+        }
+    }
+    Some((out, elem, count))
+}
+
+/// Builds the baked `.glb` for `scene` with `lightmaps` laid out by `atlas`.
+///
+/// # Errors
+/// [`Error::Encode`] when the scene was not loaded from a file or its
+/// document cannot be round-tripped.
+pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str) -> Result<Vec<u8>> {
+    let fail = |m: String| Error::Encode { path: name.into(), message: m };
+    let src = scene.source.as_ref().ok_or_else(|| fail("the scene has no source document".into()))?;
+    let mut doc = src.json.clone();
+
+    // 1. Pack all buffers into one.
+    let mut b = Builder { bin: Vec::new(), views: Vec::new(), accessors: Vec::new() };
+    let mut buffer_base = Vec::new();
+    for buf in &src.buffers {
+        b.align();
+        buffer_base.push(b.bin.len());
+        b.bin.extend_from_slice(buf);
+    }
+    let views = doc["bufferViews"].as_array().cloned().unwrap_or_default();
+    let mut view_offsets = Vec::with_capacity(views.len());
+    for v in &views {
+        let buf = v["buffer"].as_u64().unwrap_or(0) as usize;
+        let off = buffer_base.get(buf).copied().unwrap_or(0) + v["byteOffset"].as_u64().unwrap_or(0) as usize;
+        view_offsets.push(off);
+    }
+    b.views = views
+        .into_iter()
+        .zip(&view_offsets)
+        .map(|(mut v, &off)| {
+            v["buffer"] = json!(0);
+            v["byteOffset"] = json!(off);
+            v
+        })
+        .collect();
+    b.accessors = doc["accessors"].as_array().cloned().unwrap_or_default();
+
+    // 2. Images with URIs become buffer views.
+    if let Some(images) = doc["images"].as_array_mut() {
+        for (i, img) in images.iter_mut().enumerate() {
+            if img.get("uri").is_some() {
+                if let Some(Some((bytes, mime))) = src.images.get(i) {
+                    let view = {
+                        b.align();
+                        let off = b.bin.len();
+                        b.bin.extend_from_slice(bytes);
+                        b.views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len()}));
+                        b.views.len() - 1
+                    };
+                    let obj = img.as_object_mut().ok_or_else(|| fail(format!("images[{i}] is not an object")))?;
+                    obj.remove("uri");
+                    obj.insert("bufferView".into(), json!(view));
+                    obj.insert("mimeType".into(), json!(mime));
+                }
+            }
+        }
+    }
+
+    // 3. Lightmap pages as textures.
+    let mut page_texture = Vec::new();
+    let mut page_intensity = Vec::new();
+    let sampler = push(&mut doc, "samplers", json!({"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}));
+    for page in 0..lightmaps.pages.len() {
+        let (png, scale) = encode_png(lightmaps, page);
+        let view = b.view(&png, None, None);
+        let image = push(&mut doc, "images", json!({"bufferView": view, "mimeType": "image/png", "name": format!("lightmap_{page}")}));
+        page_texture.push(push(&mut doc, "textures", json!({"source": image, "sampler": sampler, "name": format!("lightmap_{page}")})));
+        // MOZ_lightmap's intensity includes π: three.js reads texel × intensity as irradiance.
+        page_intensity.push(std::f32::consts::PI * scale);
+    }
+
+    // 4. Re-indexed primitives, once per (mesh, primitive).
+    let mut prim_data: HashMap<(usize, usize), (Value, Value)> = HashMap::new(); // → (attributes, targets)
+    let mut prim_indices: HashMap<(usize, usize), usize> = HashMap::new();
+    for (m, mesh) in scene.meshes.iter().enumerate() {
+        let unwrap = &atlas.meshes[m];
+        let gm = mesh.gltf_index;
+        let prims = doc["meshes"][gm]["primitives"].as_array().cloned().unwrap_or_default();
+        for (p, prim) in prims.iter().enumerate() {
+            // Output triangles of this primitive and their output vertices.
+            let mut remap: HashMap<u32, u32> = HashMap::new();
+            let mut order: Vec<u32> = Vec::new();
+            let mut indices: Vec<u32> = Vec::new();
+            for (t, tri) in unwrap.triangles.iter().enumerate() {
+                if mesh.triangle_primitive[t] as usize != p {
+                    continue;
+                }
+                for &o in tri {
+                    let id = *remap.entry(o).or_insert_with(|| {
+                        order.push(o);
+                        order.len() as u32 - 1
+                    });
+                    indices.push(id);
+                }
+            }
+            if indices.is_empty() {
+                continue;
+            }
+            let source: Vec<usize> = order
+                .iter()
+                .map(|&o| mesh.vertex_source[unwrap.xref[o as usize] as usize] as usize)
+                .collect();
+            let gather = |b: &mut Builder, acc: usize, semantic: &str| -> Result<usize> {
+                let (data, elem, count) = accessor_elements(&doc, &b.bin, &view_offsets, acc)
+                    .ok_or_else(|| fail(format!("meshes[{gm}].primitives[{p}]: accessor {acc} cannot be read")))?;
+                let stride = elem.div_ceil(4) * 4;
+                let mut bytes = vec![0u8; stride * source.len()];
+                for (k, &s) in source.iter().enumerate() {
+                    if s >= count {
+                        return Err(fail(format!("meshes[{gm}].primitives[{p}].attributes.{semantic}: vertex {s} out of range")));
+                    }
+                    bytes[k * stride..k * stride + elem].copy_from_slice(&data[s * elem..(s + 1) * elem]);
+                }
+                let view = b.view(&bytes, (stride != elem).then_some(stride), Some(34962));
+                let mut a = b.accessors[acc].clone();
+                let obj = a.as_object_mut().ok_or_else(|| fail(format!("accessors[{acc}] is not an object")))?;
+                obj.remove("sparse");
+                obj.remove("byteOffset");
+                obj.insert("bufferView".into(), json!(view));
+                obj.insert("count".into(), json!(source.len()));
+                if obj.contains_key("min") || semantic == "POSITION" {
+                    // Bounds of the elements actually kept (float VEC3 positions).
+                    if b.accessors[acc]["componentType"] == json!(5126) && b.accessors[acc]["type"] == json!("VEC3") {
+                        let mut lo = [f32::INFINITY; 3];
+                        let mut hi = [f32::NEG_INFINITY; 3];
+                        for k in 0..source.len() {
+                            for c in 0..3 {
+                                let o = k * stride + 4 * c;
+                                let v = f32::from_le_bytes([bytes[o], bytes[o + 1], bytes[o + 2], bytes[o + 3]]);
+                                lo[c] = lo[c].min(v);
+                                hi[c] = hi[c].max(v);
+                            }
+                        }
+                        obj.insert("min".into(), json!(lo));
+                        obj.insert("max".into(), json!(hi));
+                    } else {
+                        obj.remove("min");
+                        obj.remove("max");
+                    }
+                }
+                b.accessors.push(a);
+                Ok(b.accessors.len() - 1)
+            };
+            let mut attributes = serde_json::Map::new();
+            if let Some(attrs) = prim["attributes"].as_object() {
+                for (sem, acc) in attrs {
+                    if sem == "TEXCOORD_1" {
+                        continue;
+                    }
+                    let acc = acc.as_u64().ok_or_else(|| fail(format!("meshes[{gm}].primitives[{p}].attributes.{sem}")))? as usize;
+                    attributes.insert(sem.clone(), json!(gather(&mut b, acc, sem)?));
+                }
+            }
+            let mut targets = Vec::new();
+            if let Some(ts) = prim["targets"].as_array() {
+                for t in ts {
+                    let mut out = serde_json::Map::new();
+                    if let Some(t) = t.as_object() {
+                        for (sem, acc) in t {
+                            let acc = acc.as_u64().unwrap_or(u64::MAX) as usize;
+                            out.insert(sem.clone(), json!(gather(&mut b, acc, sem)?));
+                        }
+                    }
+                    targets.push(Value::Object(out));
+                }
+            }
+            // TEXCOORD_1: the unwrap's UV in [0, 1] of the instance rectangle.
+            let uv: Vec<u8> = order
+                .iter()
+                .flat_map(|&o| unwrap.uv[o as usize].to_array())
+                .flat_map(f32::to_le_bytes)
+                .collect();
+            let view = b.view(&uv, None, Some(34962));
+            b.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": order.len(), "type": "VEC2"}));
+            attributes.insert("TEXCOORD_1".into(), json!(b.accessors.len() - 1));
+            // Texture coordinate sets must be numbered from 0 without gaps.
+            if !attributes.contains_key("TEXCOORD_0") {
+                attributes.insert("TEXCOORD_0".into(), json!(b.accessors.len() - 1));
+            }
+            let idx: Vec<u8> = indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+            let view = b.view(&idx, None, Some(34963));
+            b.accessors.push(json!({"bufferView": view, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}));
+            prim_indices.insert((gm, p), b.accessors.len() - 1);
+            prim_data.insert((gm, p), (Value::Object(attributes), Value::Array(targets)));
+        }
+    }
+
+    // 5. Per instance: its mesh (the original for the first instance, copies
+    // after), with lightmapped material copies.
+    let mut first_use: HashMap<usize, bool> = HashMap::new();
+    for (i, inst) in scene.instances.iter().enumerate() {
+        let mesh = &scene.meshes[inst.mesh as usize];
+        let gm = mesh.gltf_index;
+        let rect = atlas.instances[i];
+        let mut mesh_json = doc["meshes"][gm].clone();
+        if let Some(prims) = mesh_json["primitives"].as_array_mut() {
+            for (p, prim) in prims.iter_mut().enumerate() {
+                let Some((attrs, targets)) = prim_data.get(&(gm, p)) else { continue };
+                prim["attributes"] = attrs.clone();
+                if prim.get("targets").is_some() {
+                    prim["targets"] = targets.clone();
+                }
+                prim["indices"] = json!(prim_indices[&(gm, p)]);
+                prim["mode"] = json!(4);
+                let mut material = match prim.get("material").and_then(Value::as_u64) {
+                    Some(m) => doc["materials"][m as usize].clone(),
+                    None => json!({"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0}}),
+                };
+                if !material.is_object() {
+                    material = json!({});
+                }
+                let page = rect.page as usize;
+                let lightmap = json!({
+                    "index": page_texture[page],
+                    "texCoord": 1,
+                    "intensity": page_intensity[page],
+                    "extensions": {"KHR_texture_transform": {
+                        "offset": [rect.min[0], rect.min[1]],
+                        "scale": [rect.max[0] - rect.min[0], rect.max[1] - rect.min[1]],
+                    }},
+                });
+                if !material["extensions"].is_object() {
+                    material["extensions"] = json!({});
+                }
+                material["extensions"]["MOZ_lightmap"] = lightmap;
+                prim["material"] = json!(push(&mut doc, "materials", material));
+            }
+        }
+        let index = if first_use.insert(gm, true).is_none() {
+            doc["meshes"][gm] = mesh_json;
+            gm
+        } else {
+            push(&mut doc, "meshes", mesh_json)
+        };
+        doc["nodes"][inst.node_index]["mesh"] = json!(index);
+    }
+
+    // 6. Finish the document.
+    b.align();
+    doc["bufferViews"] = Value::Array(b.views);
+    doc["accessors"] = Value::Array(b.accessors);
+    doc["buffers"] = json!([{"byteLength": b.bin.len()}]);
+    let used = doc["extensionsUsed"].as_array().cloned().unwrap_or_default();
+    let mut used: Vec<Value> = used;
+    for ext in ["MOZ_lightmap", "KHR_texture_transform"] {
+        if !used.contains(&json!(ext)) {
+            used.push(json!(ext));
+        }
+    }
+    doc["extensionsUsed"] = Value::Array(used);
+    if let Some(asset) = doc["asset"].as_object_mut() {
+        asset.insert("generator".into(), json!(format!("radbake {}", env!("CARGO_PKG_VERSION"))));
+    }
+    Ok(glb(&doc, &b.bin))
+}
+
+/// Appends `v` to the array `doc[key]` (created if missing); returns its index.
+fn push(doc: &mut Value, key: &str, v: Value) -> usize {
+    if !doc[key].is_array() {
+        doc[key] = json!([]);
+    }
+    let a = doc[key].as_array_mut().expect("just made an array");
+    a.push(v);
+    a.len() - 1
+}
+
+/// A GLB container (glTF 2.0 §4.4): header, JSON chunk, BIN chunk.
+pub fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut j = serde_json::to_vec(doc).expect("JSON values serialise");
+    while j.len() % 4 != 0 {
+        j.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let total = 12 + 8 + j.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
