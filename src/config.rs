@@ -53,6 +53,18 @@ pub enum EmitterSampling {
     Radiosity,
 }
 
+/// Named starting points for the settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// [`BakeConfig::preview`].
+    Preview,
+    /// [`BakeConfig::medium`] (the default).
+    Medium,
+    /// [`BakeConfig::production`].
+    Production,
+}
+
 /// All bake settings. Every field has a default; `bake.toml` may set any
 /// subset (unknown keys are rejected).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -121,6 +133,60 @@ impl BakeConfig {
         }
     }
 
+    /// Quick look: a quarter of the rays, coarser texels, loose tolerance.
+    pub const fn preview() -> Self {
+        let m = Self::medium();
+        BakeConfig {
+            texels_per_meter: 48.0,
+            rays_per_patch: 256,
+            direct_samples: 16,
+            tolerance: 1e-3,
+            ..m
+        }
+    }
+
+    /// Final quality: smaller patches, 4× the rays and light samples, tight tolerance.
+    pub const fn production() -> Self {
+        let m = Self::medium();
+        BakeConfig {
+            patch_texels: 2,
+            rays_per_patch: 4096,
+            direct_samples: 256,
+            tolerance: 1e-5,
+            ..m
+        }
+    }
+
+    /// The settings of a [`Preset`].
+    pub const fn preset(p: Preset) -> Self {
+        match p {
+            Preset::Preview => Self::preview(),
+            Preset::Medium => Self::medium(),
+            Preset::Production => Self::production(),
+        }
+    }
+
+    /// `bake.toml` laid over `base`: keys the file sets replace the base's.
+    ///
+    /// # Errors
+    /// [`Error::Config`] naming an unknown key or a bad value.
+    pub fn from_toml_over(base: &BakeConfig, text: &str) -> Result<Self> {
+        let bad = |message: String| Error::Config {
+            key: "bake.toml".into(),
+            message,
+        };
+        let file: toml::Table = toml::from_str(text).map_err(|e| bad(e.message().to_owned()))?;
+        let mut merged = toml::Table::try_from(base).map_err(|e| bad(e.to_string()))?;
+        for (k, v) in file {
+            merged.insert(k, v);
+        }
+        let cfg: BakeConfig = merged
+            .try_into()
+            .map_err(|e: toml::de::Error| bad(e.message().to_owned()))?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
     /// Checks every value's range.
     ///
     /// # Errors
@@ -170,12 +236,7 @@ impl BakeConfig {
     /// # Errors
     /// [`Error::Config`] naming an unknown key or a bad value.
     pub fn from_toml(text: &str) -> Result<Self> {
-        let cfg: BakeConfig = toml::from_str(text).map_err(|e| Error::Config {
-            key: "bake.toml".into(),
-            message: e.message().to_owned(),
-        })?;
-        cfg.validate()?;
-        Ok(cfg)
+        Self::from_toml_over(&Self::default(), text)
     }
 }
 
@@ -192,6 +253,16 @@ mod tests {
     fn unknown_key_is_named() {
         let err = BakeConfig::from_toml("texels_per_metre = 3").unwrap_err();
         assert!(err.to_string().contains("texels_per_metre"), "{err}");
+    }
+
+    #[test]
+    fn file_layers_over_preset() {
+        let c =
+            BakeConfig::from_toml_over(&BakeConfig::production(), "texels_per_meter = 10").unwrap();
+        assert_eq!(c.texels_per_meter, 10.0);
+        assert_eq!(c.rays_per_patch, BakeConfig::production().rays_per_patch);
+        let all = toml::to_string(&BakeConfig::preview()).unwrap();
+        assert_eq!(BakeConfig::from_toml(&all).unwrap(), BakeConfig::preview());
     }
 
     #[test]

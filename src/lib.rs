@@ -30,6 +30,7 @@ pub mod direct;
 pub mod error;
 pub mod form_factors;
 pub mod geometry;
+pub mod incremental;
 pub mod lightmap;
 pub mod output;
 pub mod patches;

@@ -1,12 +1,12 @@
 //! `radbake` command line: a thin layer over [`radbake::bake`].
 //!
-//! Exit codes: 0 success, 1 bad input (scene or settings), 2 usage error,
-//! 3 I/O or internal error.
+//! Exit codes: 0 success (or already up to date), 1 bad input (scene or
+//! settings), 2 usage error, 3 I/O or internal error.
 
 use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use radbake::config::{EmitterSampling, FormFactorMethod, Solver, UvSource};
+use radbake::config::{EmitterSampling, FormFactorMethod, Preset, Solver, UvSource};
 use radbake::report::StageTime;
 use radbake::BakeConfig;
 use std::path::PathBuf;
@@ -90,20 +90,40 @@ struct BakeArgs {
     /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
     #[arg(long, value_enum)]
     emitters: Option<EmitterSampling>,
+    /// Starting settings, below the config file and flags [default: medium].
+    #[arg(long, value_enum)]
+    preset: Option<Preset>,
+    /// Bake even if the outputs are up to date.
+    #[arg(long)]
+    force: bool,
+    /// Progress: `bars` (on a terminal) or `json` (one object per line on stderr).
+    #[arg(long, value_enum, default_value = "bars")]
+    progress: ProgressMode,
     /// Print nothing but errors.
-    #[arg(long, short)]
+    #[arg(long, short, conflicts_with = "verbose")]
     quiet: bool,
+    /// Also print per-stage times and counters.
+    #[arg(long, short)]
+    verbose: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum ProgressMode {
+    Bars,
+    Json,
 }
 
 impl BakeArgs {
+    /// Defaults < preset < config file < flags.
     fn config(&self) -> anyhow::Result<BakeConfig> {
+        let base = BakeConfig::preset(self.preset.unwrap_or(Preset::Medium));
         let mut c = match &self.config {
             Some(path) => {
-                let text =
-                    std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-                BakeConfig::from_toml(&text)?
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("cannot read config {}", path.display()))?;
+                BakeConfig::from_toml_over(&base, &text)?
             }
-            None => BakeConfig::default(),
+            None => base,
         };
         macro_rules! set {
             ($($f:ident),*) => { $( if let Some(v) = self.$f { c.$f = v; } )* };
@@ -117,9 +137,14 @@ impl BakeArgs {
             max_iterations,
             uv,
             form_factors,
+            hemicube_resolution,
             solver,
+            direct_max_patches,
             seed,
-            max_texels
+            max_texels,
+            direct_samples,
+            sky,
+            emitters
         );
         c.validate()?;
         Ok(c)
@@ -181,6 +206,47 @@ impl radbake::Progress for Bars {
     }
 }
 
+/// One JSON object per line on stderr: {"stage","done","total","elapsed","eta"}
+/// at most every 100 ms, and at each stage's start and end.
+struct JsonProgress {
+    state: Mutex<(String, u64, u64, Instant, Instant)>,
+}
+
+impl JsonProgress {
+    fn emit(stage: &str, done: u64, total: u64, started: Instant) {
+        let elapsed = started.elapsed().as_secs_f64();
+        let eta = if done > 0 && total >= done {
+            serde_json::json!(elapsed * (total - done) as f64 / done as f64)
+        } else {
+            serde_json::Value::Null
+        };
+        eprintln!(
+            "{}",
+            serde_json::json!({"stage": stage, "done": done, "total": total, "elapsed": elapsed, "eta": eta})
+        );
+    }
+}
+
+impl radbake::Progress for JsonProgress {
+    fn begin(&self, stage: &str, total: u64) {
+        let now = Instant::now();
+        *self.state.lock().expect("progress lock") = (stage.to_owned(), 0, total, now, now);
+        Self::emit(stage, 0, total, now);
+    }
+    fn advance(&self, n: u64) {
+        let mut s = self.state.lock().expect("progress lock");
+        s.1 += n;
+        if s.4.elapsed().as_millis() >= 100 {
+            s.4 = Instant::now();
+            Self::emit(&s.0, s.1, s.2, s.3);
+        }
+    }
+    fn end(&self) {
+        let s = self.state.lock().expect("progress lock");
+        Self::emit(&s.0, s.1.max(s.2), s.2, s.3);
+    }
+}
+
 fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
     let config = args
         .config()
@@ -191,30 +257,67 @@ fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
         stage: "import".into(),
         seconds: start.elapsed().as_secs_f64(),
     };
-    let bars = Bars {
-        bar: Mutex::new(None),
-        hidden: args.quiet,
-    };
-    let bake = radbake::bake(&scene, &config, &bars).map_err(lib_err)?;
-    let mut report = bake.report(&args.scene.display().to_string());
-    report.stages.insert(0, import);
-    let t = Instant::now();
-    let mut written =
-        radbake::output::write_lightmaps(&args.out, &bake.lightmaps).map_err(lib_err)?;
     let stem = args
         .scene
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "scene".into());
+    let hash = radbake::incremental::content_hash(&scene, &config);
+    let glb = format!("{stem}.baked.glb");
+    let expected = [
+        "report.json",
+        "manifest.json",
+        "lightmap_0.exr",
+        glb.as_str(),
+    ];
+    if !args.force && radbake::incremental::up_to_date(&args.out, &hash, &expected) {
+        if !args.quiet {
+            eprintln!(
+                "{}: up to date (use --force to bake again)",
+                args.out.display()
+            );
+        }
+        return Ok(());
+    }
+    let progress: Box<dyn radbake::Progress> = match args.progress {
+        ProgressMode::Json => Box::new(JsonProgress {
+            state: Mutex::new((String::new(), 0, 0, Instant::now(), Instant::now())),
+        }),
+        ProgressMode::Bars => Box::new(Bars {
+            bar: Mutex::new(None),
+            hidden: args.quiet,
+        }),
+    };
+    let bake = radbake::bake(&scene, &config, progress.as_ref()).map_err(lib_err)?;
+    let mut report = bake.report(&args.scene.display().to_string());
+    report.stages.insert(0, import);
+    let t = Instant::now();
+    let mut written =
+        radbake::output::write_lightmaps(&args.out, &bake.lightmaps).map_err(lib_err)?;
     written.extend(
-        radbake::output::write_engine_outputs(&args.out, &stem, &scene, &bake.atlas, &bake.lightmaps)
-            .map_err(lib_err)?,
+        radbake::output::write_engine_outputs(
+            &args.out,
+            &stem,
+            &scene,
+            &bake.atlas,
+            &bake.lightmaps,
+        )
+        .map_err(lib_err)?,
     );
     report.stages.push(StageTime {
         stage: "write".into(),
         seconds: t.elapsed().as_secs_f64(),
     });
     written.push(radbake::output::write_report(&args.out, &report).map_err(lib_err)?);
+    radbake::incremental::record(&args.out, &hash).map_err(lib_err)?;
+    if args.verbose {
+        for s in &report.stages {
+            eprintln!("{:>13}: {:8.3} s", s.stage, s.seconds);
+        }
+        if let Ok(counts) = serde_json::to_string_pretty(&report.counts) {
+            eprintln!("{counts}");
+        }
+    }
     if !args.quiet {
         for w in &report.warnings {
             eprintln!("warning: {w}");

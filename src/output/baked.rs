@@ -25,15 +25,22 @@ use std::collections::HashMap;
 /// (the page's largest value). Decoding: value = srgb_to_linear(png) × scale.
 pub fn encode_png(lightmaps: &Lightmaps, page: usize) -> (Vec<u8>, f32) {
     let values = &lightmaps.pages[page];
-    let scale = values.iter().map(|v| v.max_element()).fold(0.0f32, f32::max).max(1e-8);
+    let scale = values
+        .iter()
+        .map(|v| v.max_element())
+        .fold(0.0f32, f32::max)
+        .max(1e-8);
     let img = image::RgbImage::from_fn(lightmaps.width, lightmaps.height, |x, y| {
         let v = values[(y * lightmaps.width + x) as usize] / scale;
         let c = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
         image::Rgb([c(v.x), c(v.y), c(v.z)])
     });
     let mut bytes = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
-        .expect("PNG encoding to memory cannot fail");
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .expect("PNG encoding to memory cannot fail");
     (bytes, scale)
 }
 
@@ -90,7 +97,12 @@ impl Builder {
 }
 
 /// Reads every element of accessor `a` as raw bytes (sparse applied).
-fn accessor_elements(doc: &Value, bin: &[u8], view_offsets: &[usize], a: usize) -> Option<(Vec<u8>, usize, usize)> {
+fn accessor_elements(
+    doc: &Value,
+    bin: &[u8],
+    view_offsets: &[usize],
+    a: usize,
+) -> Option<(Vec<u8>, usize, usize)> {
     let acc = doc["accessors"].get(a)?;
     let cs = component_size(acc["componentType"].as_u64()?)?;
     let tc = type_count(acc["type"].as_str()?)?;
@@ -121,7 +133,8 @@ fn accessor_elements(doc: &Value, bin: &[u8], view_offsets: &[usize], a: usize) 
                 _ => u32::from_le_bytes([ib[0], ib[1], ib[2], ib[3]]) as usize,
             };
             let src = bin.get(vstart + k * elem..vstart + (k + 1) * elem)?;
-            out.get_mut(idx * elem..(idx + 1) * elem)?.copy_from_slice(src);
+            out.get_mut(idx * elem..(idx + 1) * elem)?
+                .copy_from_slice(src);
         }
     }
     Some((out, elem, count))
@@ -132,13 +145,28 @@ fn accessor_elements(doc: &Value, bin: &[u8], view_offsets: &[usize], a: usize) 
 /// # Errors
 /// [`Error::Encode`] when the scene was not loaded from a file or its
 /// document cannot be round-tripped.
-pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str) -> Result<Vec<u8>> {
-    let fail = |m: String| Error::Encode { path: name.into(), message: m };
-    let src = scene.source.as_ref().ok_or_else(|| fail("the scene has no source document".into()))?;
+pub fn baked_glb(
+    scene: &Scene,
+    atlas: &Atlas,
+    lightmaps: &Lightmaps,
+    name: &str,
+) -> Result<Vec<u8>> {
+    let fail = |m: String| Error::Encode {
+        path: name.into(),
+        message: m,
+    };
+    let src = scene
+        .source
+        .as_ref()
+        .ok_or_else(|| fail("the scene has no source document".into()))?;
     let mut doc = src.json.clone();
 
     // 1. Pack all buffers into one.
-    let mut b = Builder { bin: Vec::new(), views: Vec::new(), accessors: Vec::new() };
+    let mut b = Builder {
+        bin: Vec::new(),
+        views: Vec::new(),
+        accessors: Vec::new(),
+    };
     let mut buffer_base = Vec::new();
     for buf in &src.buffers {
         b.align();
@@ -149,7 +177,8 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
     let mut view_offsets = Vec::with_capacity(views.len());
     for v in &views {
         let buf = v["buffer"].as_u64().unwrap_or(0) as usize;
-        let off = buffer_base.get(buf).copied().unwrap_or(0) + v["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let off = buffer_base.get(buf).copied().unwrap_or(0)
+            + v["byteOffset"].as_u64().unwrap_or(0) as usize;
         view_offsets.push(off);
     }
     b.views = views
@@ -172,10 +201,14 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
                         b.align();
                         let off = b.bin.len();
                         b.bin.extend_from_slice(bytes);
-                        b.views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len()}));
+                        b.views.push(
+                            json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len()}),
+                        );
                         b.views.len() - 1
                     };
-                    let obj = img.as_object_mut().ok_or_else(|| fail(format!("images[{i}] is not an object")))?;
+                    let obj = img
+                        .as_object_mut()
+                        .ok_or_else(|| fail(format!("images[{i}] is not an object")))?;
                     obj.remove("uri");
                     obj.insert("bufferView".into(), json!(view));
                     obj.insert("mimeType".into(), json!(mime));
@@ -187,12 +220,24 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
     // 3. Lightmap pages as textures.
     let mut page_texture = Vec::new();
     let mut page_intensity = Vec::new();
-    let sampler = push(&mut doc, "samplers", json!({"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}));
+    let sampler = push(
+        &mut doc,
+        "samplers",
+        json!({"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}),
+    );
     for page in 0..lightmaps.pages.len() {
         let (png, scale) = encode_png(lightmaps, page);
         let view = b.view(&png, None, None);
-        let image = push(&mut doc, "images", json!({"bufferView": view, "mimeType": "image/png", "name": format!("lightmap_{page}")}));
-        page_texture.push(push(&mut doc, "textures", json!({"source": image, "sampler": sampler, "name": format!("lightmap_{page}")})));
+        let image = push(
+            &mut doc,
+            "images",
+            json!({"bufferView": view, "mimeType": "image/png", "name": format!("lightmap_{page}")}),
+        );
+        page_texture.push(push(
+            &mut doc,
+            "textures",
+            json!({"source": image, "sampler": sampler, "name": format!("lightmap_{page}")}),
+        ));
         // MOZ_lightmap's intensity includes π: three.js reads texel × intensity as irradiance.
         page_intensity.push(std::f32::consts::PI * scale);
     }
@@ -203,7 +248,10 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
     for (m, mesh) in scene.meshes.iter().enumerate() {
         let unwrap = &atlas.meshes[m];
         let gm = mesh.gltf_index;
-        let prims = doc["meshes"][gm]["primitives"].as_array().cloned().unwrap_or_default();
+        let prims = doc["meshes"][gm]["primitives"]
+            .as_array()
+            .cloned()
+            .unwrap_or_default();
         for (p, prim) in prims.iter().enumerate() {
             // Output triangles of this primitive and their output vertices.
             let mut remap: HashMap<u32, u32> = HashMap::new();
@@ -230,31 +278,45 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
                 .collect();
             let gather = |b: &mut Builder, acc: usize, semantic: &str| -> Result<usize> {
                 let (data, elem, count) = accessor_elements(&doc, &b.bin, &view_offsets, acc)
-                    .ok_or_else(|| fail(format!("meshes[{gm}].primitives[{p}]: accessor {acc} cannot be read")))?;
+                    .ok_or_else(|| {
+                        fail(format!(
+                            "meshes[{gm}].primitives[{p}]: accessor {acc} cannot be read"
+                        ))
+                    })?;
                 let stride = elem.div_ceil(4) * 4;
                 let mut bytes = vec![0u8; stride * source.len()];
                 for (k, &s) in source.iter().enumerate() {
                     if s >= count {
                         return Err(fail(format!("meshes[{gm}].primitives[{p}].attributes.{semantic}: vertex {s} out of range")));
                     }
-                    bytes[k * stride..k * stride + elem].copy_from_slice(&data[s * elem..(s + 1) * elem]);
+                    bytes[k * stride..k * stride + elem]
+                        .copy_from_slice(&data[s * elem..(s + 1) * elem]);
                 }
                 let view = b.view(&bytes, (stride != elem).then_some(stride), Some(34962));
                 let mut a = b.accessors[acc].clone();
-                let obj = a.as_object_mut().ok_or_else(|| fail(format!("accessors[{acc}] is not an object")))?;
+                let obj = a
+                    .as_object_mut()
+                    .ok_or_else(|| fail(format!("accessors[{acc}] is not an object")))?;
                 obj.remove("sparse");
                 obj.remove("byteOffset");
                 obj.insert("bufferView".into(), json!(view));
                 obj.insert("count".into(), json!(source.len()));
                 if obj.contains_key("min") || semantic == "POSITION" {
                     // Bounds of the elements actually kept (float VEC3 positions).
-                    if b.accessors[acc]["componentType"] == json!(5126) && b.accessors[acc]["type"] == json!("VEC3") {
+                    if b.accessors[acc]["componentType"] == json!(5126)
+                        && b.accessors[acc]["type"] == json!("VEC3")
+                    {
                         let mut lo = [f32::INFINITY; 3];
                         let mut hi = [f32::NEG_INFINITY; 3];
                         for k in 0..source.len() {
                             for c in 0..3 {
                                 let o = k * stride + 4 * c;
-                                let v = f32::from_le_bytes([bytes[o], bytes[o + 1], bytes[o + 2], bytes[o + 3]]);
+                                let v = f32::from_le_bytes([
+                                    bytes[o],
+                                    bytes[o + 1],
+                                    bytes[o + 2],
+                                    bytes[o + 3],
+                                ]);
                                 lo[c] = lo[c].min(v);
                                 hi[c] = hi[c].max(v);
                             }
@@ -275,7 +337,9 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
                     if sem == "TEXCOORD_1" {
                         continue;
                     }
-                    let acc = acc.as_u64().ok_or_else(|| fail(format!("meshes[{gm}].primitives[{p}].attributes.{sem}")))? as usize;
+                    let acc = acc.as_u64().ok_or_else(|| {
+                        fail(format!("meshes[{gm}].primitives[{p}].attributes.{sem}"))
+                    })? as usize;
                     attributes.insert(sem.clone(), json!(gather(&mut b, acc, sem)?));
                 }
             }
@@ -323,7 +387,9 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
         let mut mesh_json = doc["meshes"][gm].clone();
         if let Some(prims) = mesh_json["primitives"].as_array_mut() {
             for (p, prim) in prims.iter_mut().enumerate() {
-                let Some((attrs, targets)) = prim_data.get(&(gm, p)) else { continue };
+                let Some((attrs, targets)) = prim_data.get(&(gm, p)) else {
+                    continue;
+                };
                 prim["attributes"] = attrs.clone();
                 if prim.get("targets").is_some() {
                     prim["targets"] = targets.clone();
@@ -332,7 +398,9 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
                 prim["mode"] = json!(4);
                 let mut material = match prim.get("material").and_then(Value::as_u64) {
                     Some(m) => doc["materials"][m as usize].clone(),
-                    None => json!({"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0}}),
+                    None => {
+                        json!({"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0}})
+                    }
                 };
                 if !material.is_object() {
                     material = json!({});
@@ -368,7 +436,10 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
     doc["bufferViews"] = Value::Array(b.views);
     doc["accessors"] = Value::Array(b.accessors);
     doc["buffers"] = json!([{"byteLength": b.bin.len()}]);
-    let used = doc["extensionsUsed"].as_array().cloned().unwrap_or_default();
+    let used = doc["extensionsUsed"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default();
     let mut used: Vec<Value> = used;
     for ext in ["MOZ_lightmap", "KHR_texture_transform"] {
         if !used.contains(&json!(ext)) {
@@ -377,7 +448,10 @@ pub fn baked_glb(scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps, name: &str
     }
     doc["extensionsUsed"] = Value::Array(used);
     if let Some(asset) = doc["asset"].as_object_mut() {
-        asset.insert("generator".into(), json!(format!("radbake {}", env!("CARGO_PKG_VERSION"))));
+        asset.insert(
+            "generator".into(),
+            json!(format!("radbake {}", env!("CARGO_PKG_VERSION"))),
+        );
     }
     Ok(glb(&doc, &b.bin))
 }

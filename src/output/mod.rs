@@ -7,10 +7,10 @@ pub mod baked;
 
 use crate::atlas::Atlas;
 use crate::error::{Error, Result};
-use crate::scene::Scene;
 use crate::lightmap::Lightmaps;
 use crate::report::Report;
 use crate::scene::texture::linear_to_srgb;
+use crate::scene::Scene;
 use std::path::{Path, PathBuf};
 
 /// Writes `path` atomically: `write` fills a temporary sibling, which is
@@ -154,8 +154,17 @@ pub fn write_report(out_dir: &Path, report: &Report) -> Result<PathBuf> {
 ///
 /// # Errors
 /// [`Error::Io`] / [`Error::Encode`].
-pub fn write_engine_outputs(out_dir: &Path, stem: &str, scene: &Scene, atlas: &Atlas, lightmaps: &Lightmaps) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io { path: out_dir.to_path_buf(), source })?;
+pub fn write_engine_outputs(
+    out_dir: &Path,
+    stem: &str,
+    scene: &Scene,
+    atlas: &Atlas,
+    lightmaps: &Lightmaps,
+) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io {
+        path: out_dir.to_path_buf(),
+        source,
+    })?;
     let mut written = Vec::new();
     let mut pages = Vec::new();
     for page in 0..lightmaps.pages.len() {
@@ -203,7 +212,10 @@ pub fn write_engine_outputs(out_dir: &Path, stem: &str, scene: &Scene, atlas: &A
         "instances": instances,
     });
     let path = out_dir.join("manifest.json");
-    let text = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::Encode { path: path.clone(), message: e.to_string() })?;
+    let text = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::Encode {
+        path: path.clone(),
+        message: e.to_string(),
+    })?;
     write_bytes_atomic(&path, &text)?;
     written.push(path);
     Ok(written)

@@ -207,17 +207,21 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
     } else {
         bytes.clone()
     };
-    let json: serde_json::Value = serde_json::from_slice(&json_bytes).map_err(|e| Error::Parse {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    let json: serde_json::Value =
+        serde_json::from_slice(&json_bytes).map_err(|e| Error::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
     let mut images = Vec::new();
     for image in gltf.document.images() {
         let location = format!("images[{}]", image.index());
         images.push(match image.source() {
             gltf::image::Source::View { view, mime_type } => {
                 let data = &buffers[view.buffer().index()];
-                Some((data[view.offset()..view.offset() + view.length()].to_vec(), mime_type.to_owned()))
+                Some((
+                    data[view.offset()..view.offset() + view.length()].to_vec(),
+                    mime_type.to_owned(),
+                ))
             }
             gltf::image::Source::Uri { uri, mime_type } => {
                 let data = match ctx.data_uri(uri, &location)? {
@@ -229,9 +233,13 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
                         d
                     }
                 };
-                let mime = mime_type
-                    .map(str::to_owned)
-                    .unwrap_or_else(|| if data.starts_with(b"\x89PNG") { "image/png".into() } else { "image/jpeg".into() });
+                let mime = mime_type.map(str::to_owned).unwrap_or_else(|| {
+                    if data.starts_with(b"\x89PNG") {
+                        "image/png".into()
+                    } else {
+                        "image/jpeg".into()
+                    }
+                });
                 Some((data, mime))
             }
         });

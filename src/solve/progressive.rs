@@ -25,7 +25,13 @@ const CACHE_ENTRIES: usize = 32 << 20;
 
 /// Solves by shooting until the unshot power is below `tolerance` of the
 /// initial power or `max_shots` shots have been fired.
-pub fn solve(rows: &dyn ShootingRows, sys: &System, tolerance: f32, max_shots: u64, advance: &dyn Fn(u64)) -> Progressive {
+pub fn solve(
+    rows: &dyn ShootingRows,
+    sys: &System,
+    tolerance: f32,
+    max_shots: u64,
+    advance: &dyn Fn(u64),
+) -> Progressive {
     let n = sys.len();
     let mut radiance = sys.initial_radiance();
     let mut irradiance: Vec<Vec3> = sys.direct.to_vec();
@@ -92,7 +98,11 @@ pub fn solve(rows: &dyn ShootingRows, sys: &System, tolerance: f32, max_shots: u
             radiance,
             irradiance,
             iterations: 0,
-            residual: if initial > 0.0 { (remaining / initial) as f32 } else { 0.0 },
+            residual: if initial > 0.0 {
+                (remaining / initial) as f32
+            } else {
+                0.0
+            },
             shots,
         },
         row_sums,

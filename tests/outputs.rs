@@ -1,0 +1,340 @@
+//! Engine-facing outputs and build-step behaviour: the baked .glb round
+//! trip, the manifest, the PNG encoding, determinism across runs and thread
+//! counts, incremental re-runs, presets and config layering, JSON progress.
+
+mod common;
+
+use common::*;
+use serde_json::Value;
+use std::path::Path;
+use std::process::Command;
+
+fn radbake(args: &[&str], threads: Option<&str>) -> (i32, String) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_radbake"));
+    cmd.args(args);
+    if let Some(t) = threads {
+        cmd.env("RAYON_NUM_THREADS", t);
+    }
+    let out = cmd.output().expect("radbake runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// GLB → (JSON, BIN).
+fn read_glb(path: &Path) -> (Value, Vec<u8>) {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[0..4], b"glTF");
+    let jlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: Value = serde_json::from_slice(&bytes[20..20 + jlen]).unwrap();
+    let blen = u32::from_le_bytes(bytes[20 + jlen..24 + jlen].try_into().unwrap()) as usize;
+    (doc, bytes[28 + jlen..28 + jlen + blen].to_vec())
+}
+
+fn bake_cornell(out: &Path, extra: &[&str], threads: Option<&str>) {
+    let scene = scene_path("cornell_box.gltf");
+    let mut args = vec![
+        "bake",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--texels-per-meter",
+        "40",
+        "-q",
+    ];
+    args.extend_from_slice(extra);
+    let (code, err) = radbake(&args, threads);
+    assert_eq!(code, 0, "{err}");
+}
+
+#[test]
+fn baked_glb_round_trips() {
+    let dir = temp_dir("outputs-glb");
+    bake_cornell(&dir, &[], None);
+    let glb = dir.join("cornell_box.baked.glb");
+    // Our own importer reads it back, with TEXCOORD_1 on every mesh.
+    let scene = radbake::scene::load(&glb, &Default::default()).unwrap();
+    assert_eq!(scene.instances.len(), 8);
+    assert!(scene.meshes.iter().all(|m| m.uv1.is_some()));
+    let (doc, _) = read_glb(&glb);
+    let manifest = json(&dir.join("manifest.json"));
+    let used: Vec<&str> = doc["extensionsUsed"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
+    assert!(used.contains(&"MOZ_lightmap") && used.contains(&"KHR_texture_transform"));
+    // Every node's primitives reference a lightmap whose transform is the manifest's uv_rect.
+    for inst in manifest["instances"].as_array().unwrap() {
+        let node = &doc["nodes"][inst["node_index"].as_u64().unwrap() as usize];
+        let mesh = &doc["meshes"][node["mesh"].as_u64().unwrap() as usize];
+        let rect: Vec<f64> = inst["uv_rect"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        for prim in mesh["primitives"].as_array().unwrap() {
+            assert!(prim["attributes"]["TEXCOORD_1"].is_u64());
+            let m = &doc["materials"][prim["material"].as_u64().unwrap() as usize];
+            let lm = &m["extensions"]["MOZ_lightmap"];
+            assert_eq!(lm["texCoord"], 1);
+            let t = &lm["extensions"]["KHR_texture_transform"];
+            assert!((t["offset"][0].as_f64().unwrap() - rect[0]).abs() < 1e-6);
+            assert!((t["scale"][1].as_f64().unwrap() - (rect[3] - rect[1])).abs() < 1e-6);
+            let intensity = lm["intensity"].as_f64().unwrap();
+            let page = &manifest["pages"][inst["page"].as_u64().unwrap() as usize];
+            assert!((intensity - page["moz_lightmap_intensity"].as_f64().unwrap()).abs() < 1e-4);
+        }
+    }
+    // The material's own settings survive (base colour of the red wall).
+    let red = doc["materials"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|m| m["name"] == "red" && m["extensions"]["MOZ_lightmap"].is_object());
+    assert!(red, "lightmapped copy of material `red` missing");
+}
+
+/// The sRGB PNG decodes back to the EXR's values: srgb⁻¹(png) × scale within
+/// 8-bit quantisation.
+#[test]
+fn png_encoding_decodes_to_the_exr() {
+    let dir = temp_dir("outputs-png");
+    bake_cornell(&dir, &[], None);
+    let manifest = json(&dir.join("manifest.json"));
+    let page = &manifest["pages"][0];
+    let scale = page["png_scale"].as_f64().unwrap() as f32;
+    let png = image::open(dir.join(page["png"].as_str().unwrap()))
+        .unwrap()
+        .to_rgb8();
+    let exr = exr::prelude::read_first_rgba_layer_from_file(
+        dir.join("lightmap_0.exr"),
+        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
+        |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .unwrap();
+    let (w, px) = &exr.layer_data.channel_data.pixels;
+    let mut worst = 0.0f32;
+    for (p, exr_px) in png.pixels().zip(px) {
+        for (&code8, &want) in p.0.iter().zip(exr_px) {
+            let decoded = radbake::scene::texture::srgb_to_linear(code8 as f32 / 255.0) * scale;
+            // One sRGB code step at this level.
+            let code = radbake::scene::texture::linear_to_srgb((want / scale).min(1.0));
+            let step = (radbake::scene::texture::srgb_to_linear((code + 1.0 / 255.0).min(1.0))
+                - radbake::scene::texture::srgb_to_linear(code))
+                * scale;
+            worst = worst.max((decoded - want).abs() / step.max(1e-6));
+        }
+    }
+    assert_eq!(png.width() as usize, *w);
+    // Rounding to the nearest code: at most about one step (steps differ on
+    // either side of a code in linear terms).
+    assert!(worst <= 1.01, "PNG off the EXR by {worst} code steps");
+}
+
+/// Same inputs and settings: byte-identical lightmaps, .glb and manifest on
+/// 1 and 2 threads and across runs; report.json identical but for timings.
+#[test]
+fn outputs_are_deterministic_across_runs_and_threads() {
+    let root = temp_dir("outputs-determinism");
+    // The Cornell box and a textured scene.
+    let textured = root.join("textured.gltf");
+    {
+        let mut b = GltfBuilder::default();
+        let (p, i) = quad([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]);
+        let m = b.mesh(&p, &i, Some(0));
+        b.node("floor", m);
+        let (p, i) = quad([0.0, 0.6, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.3]);
+        let m = b.mesh(&p, &i, Some(1));
+        b.node("lamp", m);
+        b.material([1.0; 3], [0.0; 3]);
+        b.material([0.0; 3], [4.0; 3]);
+        let mut doc = b.json();
+        let img = image::RgbaImage::from_fn(8, 8, |x, y| {
+            image::Rgba([(x * 30) as u8, (y * 30) as u8, 200, 255])
+        });
+        let mut png = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        std::fs::write(root.join("checker.png"), &png).unwrap();
+        doc["images"] = serde_json::json!([{"uri": "checker.png"}]);
+        doc["textures"] = serde_json::json!([{"source": 0}]);
+        doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] =
+            serde_json::json!({"index": 0});
+        std::fs::write(&textured, serde_json::to_vec(&doc).unwrap()).unwrap();
+    }
+    for (k, scene) in [scene_path("cornell_box.gltf"), textured]
+        .iter()
+        .enumerate()
+    {
+        let runs: Vec<_> = [("1", "a"), ("2", "b"), ("2", "c")]
+            .iter()
+            .map(|(threads, tag)| {
+                let out = root.join(format!("{k}{tag}"));
+                let s = scene.to_str().unwrap();
+                let (code, err) = radbake(
+                    &[
+                        "bake",
+                        s,
+                        "--out",
+                        out.to_str().unwrap(),
+                        "--texels-per-meter",
+                        "40",
+                        "-q",
+                    ],
+                    Some(threads),
+                );
+                assert_eq!(code, 0, "{err}");
+                out
+            })
+            .collect();
+        let mut files: Vec<String> = std::fs::read_dir(&runs[0])
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        files.sort();
+        assert!(files.iter().any(|f| f.ends_with(".baked.glb")), "{files:?}");
+        for f in &files {
+            let a = std::fs::read(runs[0].join(f)).unwrap();
+            for other in &runs[1..] {
+                let b = std::fs::read(other.join(f)).unwrap();
+                if f == "report.json" {
+                    let strip = |bytes: &[u8]| {
+                        let mut v: Value = serde_json::from_slice(bytes).unwrap();
+                        v.as_object_mut().unwrap().remove("stages");
+                        v
+                    };
+                    assert_eq!(strip(&a), strip(&b), "report.json differs beyond timings");
+                } else {
+                    assert!(
+                        a == b,
+                        "{f} differs between {} and {}",
+                        runs[0].display(),
+                        other.display()
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn unchanged_rerun_is_up_to_date_and_force_rebakes() {
+    let dir = temp_dir("outputs-incremental");
+    bake_cornell(&dir, &[], None);
+    let scene = scene_path("cornell_box.gltf");
+    let args = [
+        "bake",
+        scene.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--texels-per-meter",
+        "40",
+    ];
+    let (code, err) = radbake(&args, None);
+    assert_eq!(code, 0);
+    assert!(err.contains("up to date"), "{err}");
+    // A changed setting re-bakes.
+    let mut changed = args.to_vec();
+    changed.extend(["--seed", "7"]);
+    let (code, err) = radbake(&changed, None);
+    assert_eq!(code, 0);
+    assert!(err.contains("baked"), "{err}");
+    let mut forced = changed.clone();
+    forced.push("--force");
+    let (_, err) = radbake(&forced, None);
+    assert!(err.contains("baked"), "{err}");
+    // A missing output re-bakes.
+    std::fs::remove_file(dir.join("manifest.json")).unwrap();
+    let (_, err) = radbake(&changed, None);
+    assert!(
+        err.contains("baked") && dir.join("manifest.json").is_file(),
+        "{err}"
+    );
+}
+
+#[test]
+fn presets_config_and_flags_layer() {
+    let dir = temp_dir("outputs-layers");
+    std::fs::write(
+        dir.join("bake.toml"),
+        "rays_per_patch = 100\ntexels_per_meter = 30\n",
+    )
+    .unwrap();
+    let cfg = dir.join("bake.toml");
+    let scene = scene_path("cornell_box.gltf");
+    let out = dir.join("out");
+    let (code, err) = radbake(
+        &[
+            "bake",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--preset",
+            "production",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--texels-per-meter",
+            "20",
+            "--direct-samples",
+            "32",
+            "-q",
+        ],
+        None,
+    );
+    assert_eq!(code, 0, "{err}");
+    let s = &json(&dir.join("out/report.json"))["settings"];
+    assert_eq!(s["rays_per_patch"], 100, "config file over preset");
+    assert_eq!(s["texels_per_meter"], 20.0, "flag over config file");
+    assert_eq!(s["direct_samples"], 32, "flag over preset");
+    assert_eq!(s["patch_texels"], 2, "preset over defaults");
+}
+
+#[test]
+fn json_progress_lines_parse() {
+    let dir = temp_dir("outputs-progress");
+    let scene = scene_path("cornell_box.gltf");
+    let (code, err) = radbake(
+        &[
+            "bake",
+            scene.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+            "--texels-per-meter",
+            "20",
+            "--progress",
+            "json",
+            "-q",
+        ],
+        None,
+    );
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<Value> = err
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|_| panic!("not JSON: {l}")))
+        .collect();
+    let stages: std::collections::BTreeSet<&str> =
+        lines.iter().map(|v| v["stage"].as_str().unwrap()).collect();
+    for s in [
+        "unwrap",
+        "texels",
+        "form_factors",
+        "direct",
+        "solve",
+        "lightmaps",
+    ] {
+        assert!(stages.contains(s), "no progress for {s}: {stages:?}");
+    }
+    for v in &lines {
+        assert!(v["done"].is_u64() && v["total"].is_u64() && v["elapsed"].is_f64());
+    }
+}
