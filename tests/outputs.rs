@@ -338,3 +338,62 @@ fn json_progress_lines_parse() {
         assert!(v["done"].is_u64() && v["total"].is_u64() && v["elapsed"].is_f64());
     }
 }
+
+/// Animations, extras and unknown extensions survive the round trip.
+#[test]
+fn animations_and_extras_survive() {
+    let dir = temp_dir("outputs-animation");
+    let mut b = GltfBuilder::default();
+    let emit = b.material([0.0; 3], [1.0; 3]);
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = quad([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let (p, i) = quad([0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]);
+    let m = b.mesh(&p, &i, Some(emit));
+    b.node("lamp", m);
+    let input = b.scalars(&[0.0, 1.0]);
+    // Output: translations as VEC3 (not a vertex attribute: drop the target).
+    let output = b.vec3(&[[0.0, 0.0, 0.0], [0.0, 0.5, 0.0]]);
+    let mut doc = b.json();
+    let view = doc["accessors"][output]["bufferView"].as_u64().unwrap() as usize;
+    doc["bufferViews"][view]
+        .as_object_mut()
+        .unwrap()
+        .remove("target");
+    doc["animations"] = serde_json::json!([{"name": "bob", "samplers": [{"input": input, "output": output}], "channels": [{"sampler": 0, "target": {"node": 1, "path": "translation"}}]}]);
+    doc["nodes"][0]["extras"] = serde_json::json!({"game": {"spawn": true}});
+    doc["nodes"][0]["extensions"] = serde_json::json!({"EXT_made_up": {"answer": 42}});
+    doc["extensionsUsed"] = serde_json::json!(["EXT_made_up"]);
+    let path = dir.join("anim.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let out = dir.join("out");
+    let (code, err) = radbake(
+        &[
+            "bake",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--texels-per-meter",
+            "20",
+            "-q",
+        ],
+        None,
+    );
+    assert_eq!(code, 0, "{err}");
+    let (baked, bin) = read_glb(&out.join("anim.baked.glb"));
+    assert_eq!(baked["animations"][0]["name"], "bob");
+    assert_eq!(
+        baked["animations"][0]["channels"],
+        doc["animations"][0]["channels"]
+    );
+    assert_eq!(baked["nodes"][0]["extras"], doc["nodes"][0]["extras"]);
+    assert_eq!(baked["nodes"][0]["extensions"]["EXT_made_up"]["answer"], 42);
+    // The animation's keyframe times still read 0 and 1 from the packed buffer.
+    let acc = &baked["accessors"][input];
+    let view = &baked["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+    let off = view["byteOffset"].as_u64().unwrap() as usize
+        + acc["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let t1 = f32::from_le_bytes(bin[off + 4..off + 8].try_into().unwrap());
+    assert_eq!(t1, 1.0);
+}

@@ -79,6 +79,17 @@ impl GltfBuilder {
         self.accessors.len() - 1
     }
 
+    /// A SCALAR float accessor with min/max (animation inputs).
+    pub fn scalars(&mut self, data: &[f32]) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|f| f.to_le_bytes()).collect();
+        let view = self.push_view(&bytes, 0);
+        self.views[view].as_object_mut().unwrap().remove("target");
+        let min = data.iter().cloned().fold(f32::INFINITY, f32::min);
+        let max = data.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+        self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "SCALAR", "min": [min], "max": [max]}));
+        self.accessors.len() - 1
+    }
+
     /// A SCALAR u32 index accessor.
     pub fn indices(&mut self, idx: &[u32]) -> usize {
         let bytes: Vec<u8> = idx.iter().flat_map(|i| i.to_le_bytes()).collect();
