@@ -17,7 +17,6 @@ use super::raycast::{Landing, Surfaces};
 use super::{FormFactorStats, FormFactors};
 use crate::sampling::{frame, offset_ray_origin};
 use glam::{Vec2, Vec3};
-use rayon::prelude::*;
 
 /// Delta form factors of one hemicube resolution.
 #[derive(Clone, Debug)]
@@ -293,25 +292,7 @@ pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFac
 /// Every row of F by the hemicube at resolution `n`.
 pub fn compute(s: &Surfaces, n: u32, advance: &(dyn Fn(u64) + Sync)) -> FormFactors {
     let cube = Hemicube::new(n);
-    let count = s.patches.len();
-    let results: Vec<(Vec<(u32, f32)>, FormFactorStats)> = (0..count)
-        .into_par_iter()
-        .map(|i| {
-            let r = row(s, &cube, i);
-            advance(1);
-            r
-        })
-        .collect();
-    let mut stats = FormFactorStats::default();
-    let mut rows = Vec::with_capacity(count);
-    for (r, st) in results {
-        stats.rays += st.rays;
-        stats.escaped += st.escaped;
-        stats.back_faces += st.back_faces;
-        stats.unmapped += st.unmapped;
-        rows.push(r);
-    }
-    FormFactors::from_rows(count, rows, stats)
+    FormFactors::from_row_fn(s.patches.len(), |i| row(s, &cube, i), advance)
 }
 
 #[cfg(test)]

@@ -59,6 +59,32 @@ impl FormFactors {
         FormFactors { matrix, stats }
     }
 
+    /// Builds F from `row(i)` for every patch, in parallel (rows are
+    /// independent and collected in order, so the result does not depend on
+    /// the thread count); `advance` is called once per row.
+    pub fn from_row_fn(
+        n: usize,
+        row: impl Fn(usize) -> (Vec<(u32, f32)>, FormFactorStats) + Sync,
+        advance: &(dyn Fn(u64) + Sync),
+    ) -> FormFactors {
+        use rayon::prelude::*;
+        let results: Vec<(Vec<(u32, f32)>, FormFactorStats)> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let r = row(i);
+                advance(1);
+                r
+            })
+            .collect();
+        let mut stats = FormFactorStats::default();
+        let mut rows = Vec::with_capacity(n);
+        for (r, st) in results {
+            stats.add(&st);
+            rows.push(r);
+        }
+        FormFactors::from_rows(n, rows, stats)
+    }
+
     /// Σⱼ Fᵢⱼ for every row.
     pub fn row_sums(&self) -> Vec<f32> {
         self.matrix

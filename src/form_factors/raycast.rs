@@ -12,7 +12,6 @@ use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world
 use crate::scene::Scene;
 use crate::texels::{barycentric, Texels};
 use glam::{Vec2, Vec3};
-use rayon::prelude::*;
 
 /// Stream purpose id of form-factor rays.
 const PURPOSE: u64 = 1;
@@ -136,25 +135,11 @@ pub fn compute(
     seed: u64,
     advance: &(dyn Fn(u64) + Sync),
 ) -> FormFactors {
-    let n = s.patches.len();
-    let results: Vec<(Vec<(u32, f32)>, FormFactorStats)> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let r = row(s, i, rays_per_patch, seed);
-            advance(1);
-            r
-        })
-        .collect();
-    let mut stats = FormFactorStats::default();
-    let mut rows = Vec::with_capacity(n);
-    for (r, st) in results {
-        stats.rays += st.rays;
-        stats.escaped += st.escaped;
-        stats.back_faces += st.back_faces;
-        stats.unmapped += st.unmapped;
-        rows.push(r);
-    }
-    FormFactors::from_rows(n, rows, stats)
+    FormFactors::from_row_fn(
+        s.patches.len(),
+        |i| row(s, i, rays_per_patch, seed),
+        advance,
+    )
 }
 
 /// Row i of F, sorted by column.
