@@ -102,6 +102,8 @@ pub struct BakeConfig {
     pub sky: [f32; 3],
     /// How emissive surfaces are treated.
     pub emitters: EmitterSampling,
+    /// Final-gather rays per texel (0: off, texels interpolate the patch solution).
+    pub final_gather: u32,
 }
 
 impl Default for BakeConfig {
@@ -130,6 +132,7 @@ impl BakeConfig {
             direct_samples: 64,
             sky: [0.0; 3],
             emitters: EmitterSampling::Auto,
+            final_gather: 128,
         }
     }
 
@@ -140,6 +143,7 @@ impl BakeConfig {
             texels_per_meter: 48.0,
             rays_per_patch: 256,
             direct_samples: 16,
+            final_gather: 32,
             tolerance: 1e-3,
             ..m
         }
@@ -152,6 +156,7 @@ impl BakeConfig {
             patch_texels: 2,
             rays_per_patch: 4096,
             direct_samples: 256,
+            final_gather: 512,
             tolerance: 1e-5,
             ..m
         }
@@ -221,6 +226,9 @@ impl BakeConfig {
         }
         if self.direct_samples < 1 || self.direct_samples > 1 << 16 {
             return bad("direct_samples", "must be in 1..=65536");
+        }
+        if self.final_gather > 1 << 16 {
+            return bad("final_gather", "must be in 0..=65536");
         }
         if self.sky.iter().any(|v| !v.is_finite() || *v < 0.0) {
             return bad("sky", "must be three finite numbers ≥ 0");

@@ -29,6 +29,7 @@ pub mod config;
 pub mod direct;
 pub mod error;
 pub mod form_factors;
+pub mod gather;
 pub mod geometry;
 pub mod incremental;
 pub mod lightmap;
@@ -87,6 +88,10 @@ pub struct Bake<'s> {
     pub solution: Solution,
     /// Rays cast for direct light.
     pub direct_rays: u64,
+    /// Rays cast by the final gather.
+    pub gather_rays: u64,
+    /// Texels found inside or under geometry (filled from their neighbours).
+    pub invalid_texels: u64,
     /// Lightmap pages.
     pub lightmaps: Lightmaps,
     /// Wall time per stage.
@@ -315,21 +320,42 @@ pub fn bake<'s>(
     }
     timer.end("solve");
 
-    timer.begin("lightmaps", 0);
     let indirect: Vec<Vec3> = solution
         .irradiance
         .iter()
         .zip(&patch_direct)
         .map(|(h, d)| *h - *d)
         .collect();
-    let lightmaps = lightmap::build(
+    let first = lightmap::first_pass(&texels, &patches, &texel_direct, &indirect);
+    let (mut texel_values, valid, gather_rays) = if config.final_gather > 0 {
+        timer.begin("final_gather", texels.len() as u64);
+        let g = gather::gather(
+            &surfaces,
+            &first,
+            &sampled,
+            config.final_gather,
+            config.seed,
+            &advance,
+        );
+        timer.end("final_gather");
+        let values = texel_direct
+            .iter()
+            .zip(&g.indirect)
+            .map(|(d, i)| *d + *i)
+            .collect();
+        (values, g.valid, g.rays)
+    } else {
+        (first, vec![true; texels.len()], 0)
+    };
+    timer.begin("lightmaps", 0);
+    lightmap::fill_invalid(
         &texels,
-        &patches,
-        &texel_direct,
-        &indirect,
-        atlas.page_count,
-        2 * config.padding,
+        &mut texel_values,
+        &valid,
+        4 * config.patch_texels.max(4),
     );
+    let invalid_texels = valid.iter().filter(|v| !**v).count() as u64;
+    let lightmaps = lightmap::build(&texels, texel_values, atlas.page_count, 2 * config.padding);
     timer.end("lightmaps");
 
     Ok(Bake {
@@ -346,6 +372,8 @@ pub fn bake<'s>(
         patch_direct,
         solution,
         direct_rays,
+        gather_rays,
+        invalid_texels,
         lightmaps,
         stages: timer.stages,
         warnings,
@@ -479,7 +507,8 @@ impl Bake<'_> {
                 texels: self.texels.len() as u64,
                 patches: self.patches.len() as u64,
                 nonzeros: self.form_factors.as_ref().map_or(0, |f| f.nnz() as u64),
-                rays: ff.rays + self.direct_rays,
+                rays: ff.rays + self.direct_rays + self.gather_rays,
+                invalid_texels: self.invalid_texels,
                 rays_escaped: ff.escaped,
                 rays_back_faces: ff.back_faces,
                 rays_unmapped: ff.unmapped,

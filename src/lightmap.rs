@@ -121,20 +121,71 @@ pub fn dilate(values: &mut [Vec3], filled: &mut [bool], width: u32, height: u32,
     }
 }
 
-/// Builds the pages: `direct` per texel plus `indirect` per patch
-/// interpolated, then `dilate_rings` of dilation.
-pub fn build(
+/// The first-pass value of every texel: its direct light plus the patches'
+/// indirect light interpolated (see [`interpolate`]).
+pub fn first_pass(
     texels: &Texels,
     patches: &Patches,
     direct: &[Vec3],
     indirect: &[Vec3],
+) -> Vec<Vec3> {
+    let mut values = interpolate(texels, patches, indirect);
+    for (v, d) in values.iter_mut().zip(direct) {
+        *v += *d;
+    }
+    values
+}
+
+/// Replaces every invalid texel (see `gather`'s texel validity) by the mean
+/// of its valid 8-neighbours of the same instance and chart, ring by ring
+/// (up to `rings`), so light from inside walls never shows; an invalid texel
+/// with no valid texel of its chart nearby keeps its own value.
+pub fn fill_invalid(texels: &Texels, values: &mut [Vec3], valid: &[bool], rings: u32) {
+    let mut ok = valid.to_vec();
+    for _ in 0..rings {
+        let mut updates: Vec<(usize, Vec3)> = Vec::new();
+        for t in 0..texels.len() {
+            if ok[t] {
+                continue;
+            }
+            let [x, y] = texels.xy[t];
+            let (mut acc, mut n) = (Vec3::ZERO, 0);
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    if let Some(u) = texels.at(texels.page[t], x as i64 + dx, y as i64 + dy) {
+                        let u = u as usize;
+                        if ok[u]
+                            && texels.instance[u] == texels.instance[t]
+                            && texels.chart[u] == texels.chart[t]
+                        {
+                            acc += values[u];
+                            n += 1;
+                        }
+                    }
+                }
+            }
+            if n > 0 {
+                updates.push((t, acc / n as f32));
+            }
+        }
+        if updates.is_empty() {
+            break;
+        }
+        for (t, v) in updates {
+            values[t] = v;
+            ok[t] = true;
+        }
+    }
+}
+
+/// Builds the pages from final per-texel values, then `dilate_rings` of
+/// dilation into the padding.
+pub fn build(
+    texels: &Texels,
+    texel_values: Vec<Vec3>,
     page_count: u32,
     dilate_rings: u32,
 ) -> Lightmaps {
-    let mut texel_values = interpolate(texels, patches, indirect);
-    for (v, d) in texel_values.iter_mut().zip(direct) {
-        *v += *d;
-    }
     let (w, h) = (texels.width, texels.height);
     let pages = (0..page_count.max(1))
         .map(|p| {

@@ -86,6 +86,9 @@ struct BakeArgs {
     /// Sky radiance `r,g,b` (W·sr⁻¹·m⁻², linear) seen by rays leaving the scene [default: 0,0,0].
     #[arg(long, value_parser = parse_rgb)]
     sky: Option<[f32; 3]>,
+    /// Final-gather rays per texel; 0 turns the final gather off [default: 128].
+    #[arg(long)]
+    final_gather: Option<u32>,
     /// Emissive surfaces: sampled per texel (`direct`), through the radiosity solve (`radiosity`),
     /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
     #[arg(long, value_enum)]
@@ -144,7 +147,8 @@ impl BakeArgs {
             max_texels,
             direct_samples,
             sky,
-            emitters
+            emitters,
+            final_gather
         );
         c.validate()?;
         Ok(c)

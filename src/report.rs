@@ -45,6 +45,8 @@ pub struct Counts {
     pub texels_per_meter: f32,
     /// Covered texels.
     pub texels: u64,
+    /// Texels inside or under geometry, filled from valid neighbours.
+    pub invalid_texels: u64,
     /// Patches.
     pub patches: u64,
     /// Non-zeros of F.

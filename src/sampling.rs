@@ -80,11 +80,18 @@ pub fn to_world(local: Vec3, n: Vec3) -> Vec3 {
     t * local.x + b * local.y + n * local.z
 }
 
-/// The `i`-th of `n` stratified points in the unit square: a √n × √n grid
-/// (rows × columns chosen so every sample has its own stratum) with jitter.
+/// The `i`-th of `n` stratified points in the unit square: a cols × rows
+/// grid (cols = ⌊√n⌋, rows = ⌊n / cols⌋) that tiles the whole square, one
+/// jittered point per cell; the few samples left over when n is not
+/// cols × rows are uniform over the square (`jitter` itself). Every point is
+/// uniform over its stratum and the strata tile the square, so an equally
+/// weighted sum is unbiased for any n (a partial last row would not be).
 pub fn stratified(i: u32, n: u32, jitter: Vec2) -> Vec2 {
-    let cols = (n as f32).sqrt().ceil().max(1.0) as u32;
-    let rows = n.div_ceil(cols);
+    let cols = ((n as f32).sqrt().floor() as u32).max(1);
+    let rows = (n / cols).max(1);
+    if i >= cols * rows {
+        return jitter;
+    }
     let (cx, cy) = (i % cols, i / cols);
     Vec2::new(
         (cx as f32 + jitter.x) / cols as f32,
@@ -163,6 +170,19 @@ mod tests {
             seen[cell] = true;
         }
         assert!(seen.iter().all(|&s| s));
+    }
+
+    /// With n not a perfect rectangle the points must still average to the
+    /// square's centre (a partial last row biased them).
+    #[test]
+    fn stratified_is_unbiased_for_any_n() {
+        for n in [2u32, 7, 128, 2048] {
+            let mean: Vec2 = (0..n)
+                .map(|i| stratified(i, n, Vec2::splat(0.5)))
+                .sum::<Vec2>()
+                / n as f32;
+            assert!((mean - Vec2::splat(0.5)).length() < 1e-4, "n = {n}: {mean}");
+        }
     }
 
     #[test]

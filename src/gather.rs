@@ -1,0 +1,104 @@
+//! Final gather: every texel's indirect light recomputed at the texel
+//! (the "radiosity + ray tracing" two-pass method: a coarse radiosity
+//! solution read back through per-texel rays).
+//!
+//! From points spread over the texel, N stratified cosine-weighted rays;
+//! at each hit the outgoing radiance of the surface there is read from the
+//! first pass: E′ + ρ(hit) × H₁(hit texel), where H₁ is the first-pass
+//! lightmap (the texel's own direct light, sharp, plus the interpolated
+//! patch indirect light) and E′ the emission not already sampled as direct
+//! light. The texel's final value is D (its direct light) + the gathered
+//! mean, so the patch grid never shows and no interpolation crosses a wall.
+//!
+//! **Texel validity** (as Unity's): a texel whose rays hit back faces in
+//! more than `BACKFACE_TOLERANCE` of cases lies inside or under geometry;
+//! it is marked invalid and later filled from valid texels of its chart.
+
+use crate::form_factors::raycast::{Landing, Surfaces};
+use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Stream purpose id of final-gather rays.
+const PURPOSE: u64 = 3;
+
+/// A texel is invalid when more than this fraction of its rays hit back faces.
+pub const BACKFACE_TOLERANCE: f32 = 0.1;
+
+/// The gathered indirect light.
+#[derive(Clone, Debug, Default)]
+pub struct Gathered {
+    /// Indirect irradiance / π per texel.
+    pub indirect: Vec<Vec3>,
+    /// Texel validity.
+    pub valid: Vec<bool>,
+    /// Rays cast.
+    pub rays: u64,
+}
+
+/// Gathers `rays` rays per texel. `first_pass` is H₁ per texel; `sampled`
+/// flags the materials whose emission is already in the direct light.
+pub fn gather(
+    s: &Surfaces,
+    first_pass: &[Vec3],
+    sampled: &[bool],
+    rays: u32,
+    seed: u64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Gathered {
+    let n = s.texels.len();
+    let g = s.geometry;
+    let chunk = 256;
+    let parts: Vec<Vec<(Vec3, bool)>> = (0..n.div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
+            let range = c * chunk..((c + 1) * chunk).min(n);
+            let mut out = Vec::with_capacity(range.len());
+            for t in range {
+                let mut rng = Stream::new(seed, PURPOSE, t as u64);
+                // Pair position strata with direction strata at random.
+                let mut strata: Vec<u32> = (0..rays).collect();
+                for k in (1..rays as usize).rev() {
+                    strata.swap(k, rng.below(k as u32 + 1) as usize);
+                }
+                let (mut sum, mut back) = (Vec3::ZERO, 0u32);
+                for k in 0..rays {
+                    let (p, ng) = s.sample_texel(
+                        t as u32,
+                        stratified(strata[k as usize], rays, rng.next_vec2()),
+                    );
+                    let dir = to_world(cosine_hemisphere(stratified(k, rays, rng.next_vec2())), ng);
+                    match s.trace(offset_ray_origin(p, ng), dir) {
+                        (Landing::Texel(h), Some(hit)) => {
+                            let tri = hit.tri as usize;
+                            let m = g.material[tri];
+                            let uv0 = g.uv0_at(hit.tri, hit.u, hit.v);
+                            let albedo = s.scene.albedo_at(m, uv0).0;
+                            let mut l = albedo * first_pass[h as usize];
+                            if !sampled[m as usize] && g.ng_ws[tri].dot(dir) < 0.0 {
+                                l += s.scene.emission_at(m, uv0);
+                            }
+                            sum += l;
+                        }
+                        (Landing::BackFace, _) => back += 1,
+                        _ => {}
+                    }
+                }
+                let valid = (back as f32) <= BACKFACE_TOLERANCE * rays as f32;
+                out.push((sum / rays as f32, valid));
+            }
+            advance(out.len() as u64);
+            out
+        })
+        .collect();
+    let mut gathered = Gathered {
+        indirect: Vec::with_capacity(n),
+        valid: Vec::with_capacity(n),
+        rays: n as u64 * rays as u64,
+    };
+    for (v, ok) in parts.into_iter().flatten() {
+        gathered.indirect.push(v);
+        gathered.valid.push(ok);
+    }
+    gathered
+}
