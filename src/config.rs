@@ -104,6 +104,8 @@ pub struct BakeConfig {
     pub emitters: EmitterSampling,
     /// Final-gather rays per texel (0: off, texels interpolate the patch solution).
     pub final_gather: u32,
+    /// Make both sides of UV seams on continuous surfaces agree.
+    pub stitch_seams: bool,
 }
 
 impl Default for BakeConfig {
@@ -133,6 +135,7 @@ impl BakeConfig {
             sky: [0.0; 3],
             emitters: EmitterSampling::Auto,
             final_gather: 128,
+            stitch_seams: true,
         }
     }
 

@@ -40,6 +40,7 @@ pub mod raycast;
 pub mod report;
 pub mod sampling;
 pub mod scene;
+pub mod seams;
 pub mod solve;
 pub mod texels;
 
@@ -92,6 +93,10 @@ pub struct Bake<'s> {
     pub gather_rays: u64,
     /// Texels found inside or under geometry (filled from their neighbours).
     pub invalid_texels: u64,
+    /// Seam sample pairs stitched.
+    pub seam_samples: u64,
+    /// Mean |difference| across seams (RGB sum) before and after stitching.
+    pub seam_mismatch: [f64; 2],
     /// Lightmap pages.
     pub lightmaps: Lightmaps,
     /// Wall time per stage.
@@ -355,7 +360,21 @@ pub fn bake<'s>(
         4 * config.patch_texels.max(4),
     );
     let invalid_texels = valid.iter().filter(|v| !**v).count() as u64;
-    let lightmaps = lightmap::build(&texels, texel_values, atlas.page_count, 2 * config.padding);
+    let mut lightmaps =
+        lightmap::build(&texels, texel_values, atlas.page_count, 2 * config.padding);
+    let seam_samples = if config.stitch_seams {
+        seams::find(&geometry)
+    } else {
+        Vec::new()
+    };
+    let seam_mismatch = [seams::mismatch(&lightmaps, &seam_samples), 0.0];
+    seams::stitch(&mut lightmaps, &seam_samples, 16);
+    let seam_mismatch = [seam_mismatch[0], seams::mismatch(&lightmaps, &seam_samples)];
+    for t in 0..texels.len() {
+        let [x, y] = texels.xy[t];
+        lightmaps.texel_values[t] =
+            lightmaps.pages[texels.page[t] as usize][(y * texels.width + x) as usize];
+    }
     timer.end("lightmaps");
 
     Ok(Bake {
@@ -374,6 +393,8 @@ pub fn bake<'s>(
         direct_rays,
         gather_rays,
         invalid_texels,
+        seam_samples: seam_samples.len() as u64,
+        seam_mismatch,
         lightmaps,
         stages: timer.stages,
         warnings,
@@ -509,6 +530,8 @@ impl Bake<'_> {
                 nonzeros: self.form_factors.as_ref().map_or(0, |f| f.nnz() as u64),
                 rays: ff.rays + self.direct_rays + self.gather_rays,
                 invalid_texels: self.invalid_texels,
+                seam_samples: self.seam_samples,
+                seam_mismatch: self.seam_mismatch,
                 rays_escaped: ff.escaped,
                 rays_back_faces: ff.back_faces,
                 rays_unmapped: ff.unmapped,

@@ -86,6 +86,9 @@ struct BakeArgs {
     /// Sky radiance `r,g,b` (W·sr⁻¹·m⁻², linear) seen by rays leaving the scene [default: 0,0,0].
     #[arg(long, value_parser = parse_rgb)]
     sky: Option<[f32; 3]>,
+    /// Stitch UV seams of continuous surfaces: true or false [default: true].
+    #[arg(long)]
+    stitch_seams: Option<bool>,
     /// Final-gather rays per texel; 0 turns the final gather off [default: 128].
     #[arg(long)]
     final_gather: Option<u32>,
@@ -148,7 +151,8 @@ impl BakeArgs {
             direct_samples,
             sky,
             emitters,
-            final_gather
+            final_gather,
+            stitch_seams
         );
         c.validate()?;
         Ok(c)

@@ -47,6 +47,10 @@ pub struct Counts {
     pub texels: u64,
     /// Texels inside or under geometry, filled from valid neighbours.
     pub invalid_texels: u64,
+    /// Seam sample pairs (points on UV seams of continuous surfaces).
+    pub seam_samples: u64,
+    /// Mean |difference| (RGB sum) of bilinear lightmap samples across seams, before and after stitching.
+    pub seam_mismatch: [f64; 2],
     /// Patches.
     pub patches: u64,
     /// Non-zeros of F.

@@ -168,3 +168,57 @@ fn no_light_leaks_through_a_shared_wall() {
         "the floor under the wall should be found invalid"
     );
 }
+
+/// UV seams on continuous surfaces: a UV sphere (seams inside one mesh) and
+/// two floor tiles meeting edge to edge (a seam between meshes), lit by a
+/// point light. Stitching must cut the mean difference of bilinear samples
+/// across the seams to a fifth or less.
+#[test]
+fn seams_are_stitched() {
+    let dir = temp_dir("seams");
+    let mut b = GltfBuilder::default();
+    let white = b.material([0.7; 3], [0.0; 3]);
+    let (p, i) = sphere(0.5, 16, 32, false);
+    let p: Vec<[f32; 3]> = p.iter().map(|v| [v[0], v[1] + 1.0, v[2]]).collect();
+    let m = b.mesh(&p, &i, Some(white));
+    b.node("sphere", m);
+    let (p, i) = quad([-2.0, 0.0, -2.0], [0.0, 0.0, 4.0], [2.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(white));
+    b.node("tile_a", m);
+    let (p, i) = quad([0.0, 0.0, -2.0], [0.0, 0.0, 4.0], [2.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(white));
+    b.node("tile_b", m);
+    let mut doc = b.json();
+    doc["extensionsUsed"] = serde_json::json!(["KHR_lights_punctual"]);
+    doc["extensions"] = serde_json::json!({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 30.0}]}});
+    doc["nodes"].as_array_mut().unwrap().push(serde_json::json!({"name": "lamp", "translation": [0.7, 2.5, 0.4], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+    doc["scenes"][0]["nodes"] = serde_json::json!([0, 1, 2, 3]);
+    let path = dir.join("seams.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let cfg = BakeConfig {
+        texels_per_meter: 32.0,
+        ..BakeConfig::default()
+    };
+    let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
+    let [before, after] = bake.seam_mismatch;
+    eprintln!(
+        "{} seam samples: mismatch {before:.5} before, {after:.5} after",
+        bake.seam_samples
+    );
+    assert!(bake.seam_samples > 100);
+    assert!(
+        before > 0.0 && after < 0.2 * before,
+        "before {before}, after {after}"
+    );
+    let unstitched = radbake::bake(
+        &scene,
+        &BakeConfig {
+            stitch_seams: false,
+            ..cfg
+        },
+        &Silent,
+    )
+    .unwrap();
+    assert_eq!(unstitched.seam_samples, 0);
+}

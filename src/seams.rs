@@ -1,0 +1,157 @@
+//! Seam stitching. A surface that is continuous in the world but cut in the
+//! atlas (a UV seam inside one mesh, or two meshes that touch, like modular
+//! floor tiles) is sampled from two places of the lightmap; bilinear
+//! filtering then shows a line unless both sides agree.
+//!
+//! Seam edges are found in world space (triangle edges with the same
+//! endpoints, whose lightmap coordinates differ, and whose faces are within
+//! 30° of each other: creases such as a room's corners are real shading
+//! discontinuities and are left alone). Along each seam, pairs of points
+//! every half texel are made to agree in the least-squares sense: the
+//! bilinear sample on each side, Σ wᵢ vᵢ, is moved towards the pair's mean by
+//! relaxation sweeps over the texels (padding texels included) that the
+//! samples touch.
+
+use crate::geometry::Geometry;
+use crate::lightmap::Lightmaps;
+use glam::{Vec2, Vec3};
+use std::collections::HashMap;
+
+/// Faces meeting at a seam must be within this angle to be stitched.
+const MAX_SEAM_ANGLE_DEG: f32 = 30.0;
+
+/// One point of a seam, seen from both sides.
+#[derive(Clone, Copy, Debug)]
+pub struct SeamSample {
+    /// Page and texel coordinate on side A.
+    pub a: (u32, Vec2),
+    /// Page and texel coordinate on side B.
+    pub b: (u32, Vec2),
+}
+
+/// Finds the seam samples of `geometry`.
+pub fn find(geometry: &Geometry) -> Vec<SeamSample> {
+    let q = |p: Vec3| (p * 1e5).round().as_i64vec3().to_array();
+    // Edge (sorted quantised endpoints) → (triangle, corner i, corner j).
+    let mut edges: HashMap<([i64; 3], [i64; 3]), Vec<(u32, usize, usize)>> = HashMap::new();
+    for t in 0..geometry.len() {
+        let p = geometry.p_ws[t];
+        for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+            let (a, b) = (q(p[i]), q(p[j]));
+            let key = if a <= b { (a, b) } else { (b, a) };
+            edges.entry(key).or_default().push((t as u32, i, j));
+        }
+    }
+    let cos_max = MAX_SEAM_ANGLE_DEG.to_radians().cos();
+    let mut keys: Vec<_> = edges.keys().copied().collect();
+    keys.sort_unstable();
+    let mut samples = Vec::new();
+    for key in keys {
+        let list = &edges[&key];
+        if list.len() != 2 {
+            continue;
+        }
+        let (ta, ia, ja) = list[0];
+        let (tb, ib, jb) = list[1];
+        let (ta_u, tb_u) = (ta as usize, tb as usize);
+        if geometry.ng_ws[ta_u].dot(geometry.ng_ws[tb_u]) < cos_max {
+            continue;
+        }
+        // Orient B's corners like A's (same world endpoints).
+        let pa = [geometry.p_ws[ta_u][ia], geometry.p_ws[ta_u][ja]];
+        let (ib, jb) = if q(geometry.p_ws[tb_u][ib]) == q(pa[0]) {
+            (ib, jb)
+        } else {
+            (jb, ib)
+        };
+        let la = [geometry.uv_lm[ta_u][ia], geometry.uv_lm[ta_u][ja]];
+        let lb = [geometry.uv_lm[tb_u][ib], geometry.uv_lm[tb_u][jb]];
+        let same_page = geometry.page[ta_u] == geometry.page[tb_u];
+        if same_page && la[0].distance(lb[0]) < 1e-3 && la[1].distance(lb[1]) < 1e-3 {
+            continue; // shared edge inside one chart: no seam
+        }
+        // Nudge sample points a little into each triangle, so each side
+        // reads its own chart's texels.
+        let centre_a = geometry.uv_lm[ta_u].iter().sum::<Vec2>() / 3.0;
+        let centre_b = geometry.uv_lm[tb_u].iter().sum::<Vec2>() / 3.0;
+        let len = la[0].distance(la[1]).max(lb[0].distance(lb[1]));
+        let n = (2.0 * len).ceil().max(1.0) as u32;
+        for k in 0..n {
+            let s = (k as f32 + 0.5) / n as f32;
+            let ua = la[0].lerp(la[1], s);
+            let ub = lb[0].lerp(lb[1], s);
+            let ua = ua + (centre_a - ua).normalize_or_zero() * 0.01;
+            let ub = ub + (centre_b - ub).normalize_or_zero() * 0.01;
+            samples.push(SeamSample {
+                a: (geometry.page[ta_u], ua),
+                b: (geometry.page[tb_u], ub),
+            });
+        }
+    }
+    samples
+}
+
+/// The four texels and bilinear weights of texel coordinate `uv`.
+fn taps(uv: Vec2, w: u32, h: u32) -> [(usize, f32); 4] {
+    let f = uv - 0.5;
+    let x0 = f.x.floor();
+    let y0 = f.y.floor();
+    let (tx, ty) = (f.x - x0, f.y - y0);
+    let clamp = |x: f32, n: u32| (x.max(0.0) as u32).min(n - 1) as usize;
+    let (xa, xb) = (clamp(x0, w), clamp(x0 + 1.0, w));
+    let (ya, yb) = (clamp(y0, h), clamp(y0 + 1.0, h));
+    let wi = w as usize;
+    [
+        (ya * wi + xa, (1.0 - tx) * (1.0 - ty)),
+        (ya * wi + xb, tx * (1.0 - ty)),
+        (yb * wi + xa, (1.0 - tx) * ty),
+        (yb * wi + xb, tx * ty),
+    ]
+}
+
+fn sample(lm: &Lightmaps, (page, uv): (u32, Vec2)) -> Vec3 {
+    taps(uv, lm.width, lm.height)
+        .iter()
+        .map(|&(i, w)| lm.pages[page as usize][i] * w)
+        .sum()
+}
+
+/// Mean absolute difference (summed over RGB) of the bilinear samples on the
+/// two sides of every seam sample.
+pub fn mismatch(lm: &Lightmaps, samples: &[SeamSample]) -> f64 {
+    if samples.is_empty() {
+        return 0.0;
+    }
+    samples
+        .iter()
+        .map(|s| (sample(lm, s.a) - sample(lm, s.b)).abs().element_sum() as f64)
+        .sum::<f64>()
+        / samples.len() as f64
+}
+
+/// Makes both sides of every seam agree (`sweeps` relaxation sweeps, in a
+/// fixed order, so the result is deterministic).
+pub fn stitch(lm: &mut Lightmaps, samples: &[SeamSample], sweeps: u32) {
+    let (w, h) = (lm.width, lm.height);
+    for _ in 0..sweeps {
+        for s in samples {
+            let d = sample(lm, s.a) - sample(lm, s.b);
+            let ta = taps(s.a.1, w, h);
+            let tb = taps(s.b.1, w, h);
+            let norm: f32 = ta.iter().chain(tb.iter()).map(|t| t.1 * t.1).sum();
+            if norm <= 0.0 {
+                continue;
+            }
+            // The smallest change (in the least-squares sense) that closes d.
+            let step = d / norm;
+            for &(i, wt) in &ta {
+                let v = &mut lm.pages[s.a.0 as usize][i];
+                *v = (*v - step * wt).max(Vec3::ZERO);
+            }
+            for &(i, wt) in &tb {
+                let v = &mut lm.pages[s.b.0 as usize][i];
+                *v = (*v + step * wt).max(Vec3::ZERO);
+            }
+        }
+    }
+}
