@@ -106,6 +106,8 @@ pub struct BakeConfig {
     pub final_gather: u32,
     /// Make both sides of UV seams on continuous surfaces agree.
     pub stitch_seams: bool,
+    /// Edge-aware à-trous filtering of the gathered indirect light.
+    pub denoise: bool,
 }
 
 impl Default for BakeConfig {
@@ -136,6 +138,7 @@ impl BakeConfig {
             emitters: EmitterSampling::Auto,
             final_gather: 128,
             stitch_seams: true,
+            denoise: true,
         }
     }
 

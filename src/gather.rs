@@ -32,6 +32,8 @@ pub struct Gathered {
     pub indirect: Vec<Vec3>,
     /// Texel validity.
     pub valid: Vec<bool>,
+    /// Variance of each texel's gathered mean (luminance), for the denoiser.
+    pub variance: Vec<f32>,
     /// Rays cast.
     pub rays: u64,
 }
@@ -49,7 +51,7 @@ pub fn gather(
     let n = s.texels.len();
     let g = s.geometry;
     let chunk = 256;
-    let parts: Vec<Vec<(Vec3, bool)>> = (0..n.div_ceil(chunk))
+    let parts: Vec<Vec<(Vec3, bool, f32)>> = (0..n.div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
             let range = c * chunk..((c + 1) * chunk).min(n);
@@ -61,7 +63,7 @@ pub fn gather(
                 for k in (1..rays as usize).rev() {
                     strata.swap(k, rng.below(k as u32 + 1) as usize);
                 }
-                let (mut sum, mut back) = (Vec3::ZERO, 0u32);
+                let (mut sum, mut back, mut sq) = (Vec3::ZERO, 0u32, 0.0f32);
                 for k in 0..rays {
                     let (p, ng) = s.sample_texel(
                         t as u32,
@@ -79,13 +81,19 @@ pub fn gather(
                                 l += s.scene.emission_at(m, uv0);
                             }
                             sum += l;
+                            let lum = l.element_sum() / 3.0;
+                            sq += lum * lum;
                         }
                         (Landing::BackFace, _) => back += 1,
                         _ => {}
                     }
                 }
                 let valid = (back as f32) <= BACKFACE_TOLERANCE * rays as f32;
-                out.push((sum / rays as f32, valid));
+                let n = rays as f32;
+                let mean = sum / n;
+                let lum = mean.element_sum() / 3.0;
+                let variance = ((sq / n - lum * lum).max(0.0)) / n;
+                out.push((mean, valid, variance));
             }
             advance(out.len() as u64);
             out
@@ -94,11 +102,13 @@ pub fn gather(
     let mut gathered = Gathered {
         indirect: Vec::with_capacity(n),
         valid: Vec::with_capacity(n),
+        variance: Vec::with_capacity(n),
         rays: n as u64 * rays as u64,
     };
-    for (v, ok) in parts.into_iter().flatten() {
+    for (v, ok, var) in parts.into_iter().flatten() {
         gathered.indirect.push(v);
         gathered.valid.push(ok);
+        gathered.variance.push(var);
     }
     gathered
 }

@@ -26,6 +26,7 @@
 
 pub mod atlas;
 pub mod config;
+pub mod denoise;
 pub mod direct;
 pub mod error;
 pub mod form_factors;
@@ -343,9 +344,21 @@ pub fn bake<'s>(
             &advance,
         );
         timer.end("final_gather");
+        let mut indirect = g.indirect;
+        if config.denoise {
+            timer.begin("denoise", 0);
+            denoise::atrous(
+                &texels,
+                &mut indirect,
+                &g.valid,
+                &g.variance,
+                1.0 / atlas.texels_per_meter,
+            );
+            timer.end("denoise");
+        }
         let values = texel_direct
             .iter()
-            .zip(&g.indirect)
+            .zip(&indirect)
             .map(|(d, i)| *d + *i)
             .collect();
         (values, g.valid, g.rays)

@@ -86,6 +86,9 @@ struct BakeArgs {
     /// Sky radiance `r,g,b` (W·sr⁻¹·m⁻², linear) seen by rays leaving the scene [default: 0,0,0].
     #[arg(long, value_parser = parse_rgb)]
     sky: Option<[f32; 3]>,
+    /// Denoise the gathered indirect light (edge-aware à-trous): true or false [default: true].
+    #[arg(long)]
+    denoise: Option<bool>,
     /// Stitch UV seams of continuous surfaces: true or false [default: true].
     #[arg(long)]
     stitch_seams: Option<bool>,
@@ -152,7 +155,8 @@ impl BakeArgs {
             sky,
             emitters,
             final_gather,
-            stitch_seams
+            stitch_seams,
+            denoise
         );
         c.validate()?;
         Ok(c)

@@ -33,7 +33,8 @@ pub struct SeamSample {
 pub fn find(geometry: &Geometry) -> Vec<SeamSample> {
     let q = |p: Vec3| (p * 1e5).round().as_i64vec3().to_array();
     // Edge (sorted quantised endpoints) → (triangle, corner i, corner j).
-    let mut edges: HashMap<([i64; 3], [i64; 3]), Vec<(u32, usize, usize)>> = HashMap::new();
+    type Edge = ([i64; 3], [i64; 3]);
+    let mut edges: HashMap<Edge, Vec<(u32, usize, usize)>> = HashMap::new();
     for t in 0..geometry.len() {
         let p = geometry.p_ws[t];
         for (i, j) in [(0, 1), (1, 2), (2, 0)] {
