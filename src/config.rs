@@ -53,6 +53,16 @@ pub enum EmitterSampling {
     Radiosity,
 }
 
+/// Directional lightmaps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum DirectionalMode {
+    /// None.
+    None,
+    /// L1 spherical harmonics: four RGB pages a, b_x, b_y, b_z.
+    Sh,
+}
+
 /// Named starting points for the settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -108,6 +118,12 @@ pub struct BakeConfig {
     pub stitch_seams: bool,
     /// Edge-aware à-trous filtering of the gathered indirect light.
     pub denoise: bool,
+    /// Directional lightmaps (needs the final gather).
+    pub directional: DirectionalMode,
+    /// Ambient-occlusion distance in metres (0: no AO map; needs the final gather).
+    pub ao_distance: f32,
+    /// Punctual lights evaluated at s × s points per texel (1: at its centroid; 1..=8).
+    pub supersample: u32,
 }
 
 impl Default for BakeConfig {
@@ -139,6 +155,9 @@ impl BakeConfig {
             final_gather: 128,
             stitch_seams: true,
             denoise: true,
+            directional: DirectionalMode::None,
+            ao_distance: 0.0,
+            supersample: 1,
         }
     }
 
@@ -232,6 +251,20 @@ impl BakeConfig {
         }
         if self.direct_samples < 1 || self.direct_samples > 1 << 16 {
             return bad("direct_samples", "must be in 1..=65536");
+        }
+        if self.supersample < 1 || self.supersample > 8 {
+            return bad("supersample", "must be in 1..=8");
+        }
+        if !(self.ao_distance.is_finite() && self.ao_distance >= 0.0) {
+            return bad("ao_distance", "must be a finite number ≥ 0");
+        }
+        if self.final_gather == 0
+            && (self.ao_distance > 0.0 || self.directional != DirectionalMode::None)
+        {
+            return bad(
+                "final_gather",
+                "AO and directional maps come from the final gather: it must be > 0",
+            );
         }
         if self.final_gather > 1 << 16 {
             return bad("final_gather", "must be in 0..=65536");

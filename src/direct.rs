@@ -124,36 +124,47 @@ pub fn punctual_irradiance(light: &Light, p: Vec3, n: Vec3) -> Option<(Vec3, Vec
 pub fn direct_at(
     s: &Surfaces,
     lights: &Lights,
-    centre: (Vec3, Vec3),
+    punctual_points: &[(Vec3, Vec3)],
     points: &[(Vec3, Vec3)],
     rng: &mut Stream,
-) -> (Vec3, u64) {
+) -> (Vec3, Directional, u64) {
     let g = s.geometry;
     let samples = points.len() as u32;
-    let (p, n) = centre;
-    let origin = offset_ray_origin(p, n);
     let mut h = Vec3::ZERO;
     let mut rays = 0u64;
     let pi = std::f32::consts::PI;
 
-    for light in &lights.punctual {
-        if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
-            rays += 1;
-            let tmax = if dist.is_finite() {
-                dist * (1.0 - 1e-4)
-            } else {
-                f32::INFINITY
-            };
-            if s.rays.unoccluded(origin, dir, tmax) {
-                h += value;
+    // Punctual lights, averaged over the supersampling points; their
+    // directional part (see [`Directional`]) is exact: a light of
+    // irradiance/π h from ω adds h/cos θ · ω.
+    let mut dir_part: Directional = [Vec3::ZERO; 3];
+    let w = 1.0 / punctual_points.len().max(1) as f32;
+    for &(p, n) in punctual_points {
+        let origin = offset_ray_origin(p, n);
+        for light in &lights.punctual {
+            if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
+                rays += 1;
+                let tmax = if dist.is_finite() {
+                    dist * (1.0 - 1e-4)
+                } else {
+                    f32::INFINITY
+                };
+                if s.rays.unoccluded(origin, dir, tmax) {
+                    h += value * w;
+                    let cos = n.dot(dir).max(1e-3);
+                    for (c, b) in dir_part.iter_mut().enumerate() {
+                        *b += value * (w * dir[c] / cos);
+                    }
+                }
             }
         }
     }
 
     let has_emitters = !lights.emitters.is_empty();
     if samples == 0 || (!has_emitters && lights.sky == Vec3::ZERO) {
-        return (h, rays);
+        return (h, dir_part, rays);
     }
+
     let inv_n = 1.0 / samples as f32;
     // Light-sampling pdf (solid angle) of the direction from `p` to the
     // point `q` of emitter `k` whose normal is `nq`.
@@ -244,8 +255,14 @@ pub fn direct_at(
             h += le * (cos_p / pi) / (p_l + p_b) * inv_n;
         }
     }
-    (h, rays)
+    (h, dir_part, rays)
 }
+
+/// The directional part b of a texel's light, one RGB vector per world axis
+/// (x, y, z): with a = value − n_geo · b, irradiance / π for a normal n is
+/// a + n · b — the linear (L1 spherical-harmonic) model
+/// H(n) = (1/4π) ∫ L dω + (1/2π) n · ∫ L ω dω (Ramamoorthi & Hanrahan 2001).
+pub type Directional = [Vec3; 3];
 
 /// The `k`-th of `n` Hammersley points (k/n, radical inverse of k in base 2),
 /// rotated by `shift` (Cranley–Patterson) modulo 1.
@@ -257,16 +274,21 @@ pub fn hammersley(k: u32, n: u32, shift: Vec2) -> Vec2 {
 
 /// Direct light at every texel (see [`direct_at`]): area lights and sky
 /// averaged over the texel, punctual lights at its centroid. Returns (values per texel, rays cast).
+///
+/// `supersample` s > 1 evaluates punctual lights at s × s points over the
+/// texel instead of its centroid (antialiased shadow edges).
 pub fn texels(
     s: &Surfaces,
     lights: &Lights,
     samples: u32,
+    supersample: u32,
     seed: u64,
     advance: &(dyn Fn(u64) + Sync),
-) -> (Vec<Vec3>, u64) {
+) -> (Vec<Vec3>, Vec<Directional>, u64) {
     let n = s.texels.len();
     let chunk = 256;
-    let out: Vec<(Vec<Vec3>, u64)> = (0..n.div_ceil(chunk))
+    type Part = (Vec<(Vec3, Directional)>, u64);
+    let out: Vec<Part> = (0..n.div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
             let range = c * chunk..((c + 1) * chunk).min(n);
@@ -274,12 +296,19 @@ pub fn texels(
             let mut rays = 0;
             for t in range {
                 let mut rng = Stream::new(seed, PURPOSE, t as u64);
-                let centre = (s.texels.p_ws[t], s.texels.n_ws[t]);
+                let centre = if supersample <= 1 {
+                    vec![(s.texels.p_ws[t], s.texels.n_ws[t])]
+                } else {
+                    let m = supersample * supersample;
+                    (0..m)
+                        .map(|k| s.sample_texel(t as u32, stratified(k, m, Vec2::splat(0.5))))
+                        .collect()
+                };
                 let points: Vec<(Vec3, Vec3)> = (0..samples)
                     .map(|k| s.sample_texel(t as u32, stratified(k, samples, rng.next_vec2())))
                     .collect();
-                let (h, r) = direct_at(s, lights, centre, &points, &mut rng);
-                vals.push(h);
+                let (h, b, r) = direct_at(s, lights, &centre, &points, &mut rng);
+                vals.push((h, b));
                 rays += r;
             }
             advance(vals.len() as u64);
@@ -287,12 +316,16 @@ pub fn texels(
         })
         .collect();
     let mut values = Vec::with_capacity(n);
+    let mut directional = Vec::with_capacity(n);
     let mut rays = 0;
     for (v, r) in out {
-        values.extend(v);
+        for (h, b) in v {
+            values.push(h);
+            directional.push(b);
+        }
         rays += r;
     }
-    (values, rays)
+    (values, directional, rays)
 }
 
 #[cfg(test)]

@@ -14,6 +14,7 @@
 //! more than `BACKFACE_TOLERANCE` of cases lies inside or under geometry;
 //! it is marked invalid and later filled from valid texels of its chart.
 
+use crate::direct::Directional;
 use crate::form_factors::raycast::{Landing, Surfaces};
 use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
 use glam::Vec3;
@@ -34,8 +35,26 @@ pub struct Gathered {
     pub valid: Vec<bool>,
     /// Variance of each texel's gathered mean (luminance), for the denoiser.
     pub variance: Vec<f32>,
+    /// Directional part of all incident light seen by the gather rays
+    /// (indirect, sky, emitters; see [`crate::direct::Directional`]); empty
+    /// unless asked for.
+    pub directional: Vec<Directional>,
+    /// Ambient occlusion: the unoccluded fraction of the cosine-weighted
+    /// hemisphere within the AO distance; empty unless asked for.
+    pub ao: Vec<f32>,
     /// Rays cast.
     pub rays: u64,
+}
+
+/// What the gather computes besides the indirect light.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Extras {
+    /// Accumulate the directional (L1) part; needs the sky radiance.
+    pub directional: bool,
+    /// Sky radiance (for the directional part).
+    pub sky: Vec3,
+    /// AO distance in metres (0: no AO).
+    pub ao_distance: f32,
 }
 
 /// Gathers `rays` rays per texel. `first_pass` is H₁ per texel; `sampled`
@@ -46,12 +65,14 @@ pub fn gather(
     sampled: &[bool],
     rays: u32,
     seed: u64,
+    extras: Extras,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Gathered {
     let n = s.texels.len();
     let g = s.geometry;
     let chunk = 256;
-    let parts: Vec<Vec<(Vec3, bool, f32)>> = (0..n.div_ceil(chunk))
+    type Texel = (Vec3, bool, f32, Directional, f32);
+    let parts: Vec<Vec<Texel>> = (0..n.div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
             let range = c * chunk..((c + 1) * chunk).min(n);
@@ -64,28 +85,54 @@ pub fn gather(
                     strata.swap(k, rng.below(k as u32 + 1) as usize);
                 }
                 let (mut sum, mut back, mut sq) = (Vec3::ZERO, 0u32, 0.0f32);
+                let mut dir_sum: Directional = [Vec3::ZERO; 3];
+                let mut open = 0u32;
                 for k in 0..rays {
                     let (p, ng) = s.sample_texel(
                         t as u32,
                         stratified(strata[k as usize], rays, rng.next_vec2()),
                     );
                     let dir = to_world(cosine_hemisphere(stratified(k, rays, rng.next_vec2())), ng);
-                    match s.trace(offset_ray_origin(p, ng), dir) {
+                    // Radiance for the directional part: everything seen.
+                    let mut seen = Vec3::ZERO;
+                    let (landing, hit) = s.trace(offset_ray_origin(p, ng), dir);
+                    if extras.ao_distance > 0.0 && hit.is_none_or(|h| h.t >= extras.ao_distance) {
+                        open += 1;
+                    }
+                    match (landing, hit) {
                         (Landing::Texel(h), Some(hit)) => {
                             let tri = hit.tri as usize;
                             let m = g.material[tri];
                             let uv0 = g.uv0_at(hit.tri, hit.u, hit.v);
                             let albedo = s.scene.albedo_at(m, uv0).0;
                             let mut l = albedo * first_pass[h as usize];
-                            if !sampled[m as usize] && g.ng_ws[tri].dot(dir) < 0.0 {
+                            let front = g.ng_ws[tri].dot(dir) < 0.0;
+                            if front && !sampled[m as usize] {
                                 l += s.scene.emission_at(m, uv0);
                             }
                             sum += l;
                             let lum = l.element_sum() / 3.0;
                             sq += lum * lum;
+                            seen = l;
+                            if front && sampled[m as usize] && extras.directional {
+                                seen += s.scene.emission_at(m, uv0);
+                            }
                         }
                         (Landing::BackFace, _) => back += 1,
+                        (Landing::Escaped, _) => seen = extras.sky,
                         _ => {}
+                    }
+                    if extras.directional {
+                        // b = ∫ L ω dω / 2π with pdf cos θ / π: the normal
+                        // part of ω / (2 cos θ) is exactly n / 2; the
+                        // tangential part is divided by a cos θ clamped at
+                        // 0.25, bounding its variance (grazing light's
+                        // tangential pull is underestimated).
+                        let cos = ng.dot(dir);
+                        let v = ng * 0.5 + (dir - ng * cos) * (0.5 / cos.max(0.25));
+                        for (c, b) in dir_sum.iter_mut().enumerate() {
+                            *b += seen * v[c];
+                        }
                     }
                 }
                 let valid = (back as f32) <= BACKFACE_TOLERANCE * rays as f32;
@@ -93,7 +140,8 @@ pub fn gather(
                 let mean = sum / n;
                 let lum = mean.element_sum() / 3.0;
                 let variance = ((sq / n - lum * lum).max(0.0)) / n;
-                out.push((mean, valid, variance));
+                let dir_mean = dir_sum.map(|b| b / n);
+                out.push((mean, valid, variance, dir_mean, open as f32 / n));
             }
             advance(out.len() as u64);
             out
@@ -103,12 +151,20 @@ pub fn gather(
         indirect: Vec::with_capacity(n),
         valid: Vec::with_capacity(n),
         variance: Vec::with_capacity(n),
+        directional: Vec::new(),
+        ao: Vec::new(),
         rays: n as u64 * rays as u64,
     };
-    for (v, ok, var) in parts.into_iter().flatten() {
+    for (v, ok, var, d, ao) in parts.into_iter().flatten() {
         gathered.indirect.push(v);
         gathered.valid.push(ok);
         gathered.variance.push(var);
+        if extras.directional {
+            gathered.directional.push(d);
+        }
+        if extras.ao_distance > 0.0 {
+            gathered.ao.push(ao);
+        }
     }
     gathered
 }

@@ -100,6 +100,11 @@ pub struct Bake<'s> {
     pub seam_mismatch: [f64; 2],
     /// Lightmap pages.
     pub lightmaps: Lightmaps,
+    /// Directional lightmaps (`--directional sh`): a, b_x, b_y, b_z pages,
+    /// irradiance / π for a normal n being a + n_x b_x + n_y b_y + n_z b_z.
+    pub sh: Option<[Lightmaps; 4]>,
+    /// Ambient-occlusion pages (grey), with `--ao DISTANCE`.
+    pub ao: Option<Lightmaps>,
     /// Wall time per stage.
     pub stages: Vec<StageTime>,
     /// Non-fatal problems.
@@ -208,10 +213,11 @@ pub fn bake<'s>(
     timer.begin("direct", texels.len() as u64);
     let sampled = direct_sampled_materials(scene, &geometry, config.emitters);
     let lights = direct::Lights::new(scene, &geometry, &sampled, Vec3::from(config.sky));
-    let (texel_direct, direct_rays) = direct::texels(
+    let (texel_direct, direct_dir, direct_rays) = direct::texels(
         &surfaces,
         &lights,
         config.direct_samples,
+        config.supersample,
         config.seed,
         &advance,
     );
@@ -333,6 +339,13 @@ pub fn bake<'s>(
         .map(|(h, d)| *h - *d)
         .collect();
     let first = lightmap::first_pass(&texels, &patches, &texel_direct, &indirect);
+    let extras = gather::Extras {
+        directional: config.directional == config::DirectionalMode::Sh,
+        sky: Vec3::from(config.sky),
+        ao_distance: config.ao_distance,
+    };
+    let mut gathered_dir: Vec<direct::Directional> = Vec::new();
+    let mut ao: Vec<f32> = Vec::new();
     let (mut texel_values, valid, gather_rays) = if config.final_gather > 0 {
         timer.begin("final_gather", texels.len() as u64);
         let g = gather::gather(
@@ -341,8 +354,11 @@ pub fn bake<'s>(
             &sampled,
             config.final_gather,
             config.seed,
+            extras,
             &advance,
         );
+        gathered_dir = g.directional;
+        ao = g.ao;
         timer.end("final_gather");
         let mut indirect = g.indirect;
         if config.denoise {
@@ -388,6 +404,35 @@ pub fn bake<'s>(
         lightmaps.texel_values[t] =
             lightmaps.pages[texels.page[t] as usize][(y * texels.width + x) as usize];
     }
+    // Directional maps: b from the gather (indirect, sky, emitters) plus the
+    // punctual lights' exact part; a = value − n · b, so a + n · b
+    // reproduces the lightmap at the surface normal.
+    let sh = (!gathered_dir.is_empty()).then(|| {
+        let b: Vec<direct::Directional> = (0..texels.len())
+            .map(|t| std::array::from_fn(|axis| gathered_dir[t][axis] + direct_dir[t][axis]))
+            .collect();
+        let a: Vec<Vec3> = (0..texels.len())
+            .map(|t| {
+                let n = texels.n_ws[t];
+                lightmaps.texel_values[t] - b[t][0] * n.x - b[t][1] * n.y - b[t][2] * n.z
+            })
+            .collect();
+        let page = |v: Vec<Vec3>| lightmap::build(&texels, v, atlas.page_count, 2 * config.padding);
+        [
+            page(a),
+            page(b.iter().map(|d| d[0]).collect()),
+            page(b.iter().map(|d| d[1]).collect()),
+            page(b.iter().map(|d| d[2]).collect()),
+        ]
+    });
+    let ao = (!ao.is_empty()).then(|| {
+        lightmap::build(
+            &texels,
+            ao.iter().map(|&v| Vec3::splat(v)).collect(),
+            atlas.page_count,
+            2 * config.padding,
+        )
+    });
     timer.end("lightmaps");
 
     Ok(Bake {
@@ -409,6 +454,8 @@ pub fn bake<'s>(
         seam_samples: seam_samples.len() as u64,
         seam_mismatch,
         lightmaps,
+        sh,
+        ao,
         stages: timer.stages,
         warnings,
     })

@@ -6,7 +6,9 @@
 use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use radbake::config::{EmitterSampling, FormFactorMethod, Preset, Solver, UvSource};
+use radbake::config::{
+    DirectionalMode, EmitterSampling, FormFactorMethod, Preset, Solver, UvSource,
+};
 use radbake::report::StageTime;
 use radbake::BakeConfig;
 use std::path::PathBuf;
@@ -86,6 +88,15 @@ struct BakeArgs {
     /// Sky radiance `r,g,b` (W·sr⁻¹·m⁻², linear) seen by rays leaving the scene [default: 0,0,0].
     #[arg(long, value_parser = parse_rgb)]
     sky: Option<[f32; 3]>,
+    /// Directional lightmaps: `sh` writes L1 spherical-harmonic pages [default: none].
+    #[arg(long, value_enum)]
+    directional: Option<DirectionalMode>,
+    /// Write an ambient-occlusion map for occluders within this distance (metres) [default: off].
+    #[arg(long = "ao", value_name = "METRES")]
+    ao_distance: Option<f32>,
+    /// Evaluate punctual lights at s × s points per texel (antialiased shadow edges) [default: 1].
+    #[arg(long)]
+    supersample: Option<u32>,
     /// Denoise the gathered indirect light (edge-aware à-trous): true or false [default: true].
     #[arg(long)]
     denoise: Option<bool>,
@@ -156,7 +167,10 @@ impl BakeArgs {
             emitters,
             final_gather,
             stitch_seams,
-            denoise
+            denoise,
+            directional,
+            ao_distance,
+            supersample
         );
         c.validate()?;
         Ok(c)
@@ -306,6 +320,7 @@ fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
     let t = Instant::now();
     let mut written =
         radbake::output::write_lightmaps(&args.out, &bake.lightmaps).map_err(lib_err)?;
+    written.extend(radbake::output::write_extra_maps(&args.out, &bake).map_err(lib_err)?);
     written.extend(
         radbake::output::write_engine_outputs(
             &args.out,

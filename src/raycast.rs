@@ -112,6 +112,13 @@ impl Cutouts {
     }
 }
 
+/// `dir` with −0.0 components made +0.0: obvhs picks the traversal octant
+/// from the sign bits, and a −0.0 component (e.g. −(0, −1, 0) for a light
+/// pointing straight down) made rays miss everything.
+fn positive_zeros(dir: Vec3) -> Vec3 {
+    dir + Vec3::ZERO
+}
+
 /// The scene's BVH and triangles, in BVH order.
 pub struct RayCaster {
     bvh: CwBvh,
@@ -185,7 +192,7 @@ impl RayCaster {
 
     /// The closest hit along `origin + t·dir`, `t ∈ [0, tmax]` (`dir` unit).
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
+        let ray = Ray::new(origin.into(), positive_zeros(dir).into(), 0.0, tmax);
         let mut hit = obvhs::ray::RayHit::none();
         let mut uv = (0.0f32, 0.0f32);
         let found = self
@@ -209,7 +216,7 @@ impl RayCaster {
 
     /// True when nothing lies along `origin + t·dir` for `t ∈ [0, tmax]`.
     pub fn unoccluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
+        let ray = Ray::new(origin.into(), positive_zeros(dir).into(), 0.0, tmax);
         self.bvh
             .ray_traverse_miss(ray, |r, k| self.test(k, r).map_or(f32::INFINITY, |h| h.0))
     }
@@ -249,6 +256,34 @@ mod tests {
             g.material.push(0);
         }
         g
+    }
+
+    /// A direction with a −0.0 component still finds its hit (regression:
+    /// a sun pointing straight down cast no shadows).
+    #[test]
+    fn negative_zero_directions_hit() {
+        let scene = Scene {
+            materials: vec![crate::scene::Material::fallback()],
+            ..Default::default()
+        };
+        let mut g = random_geometry(1, 0);
+        g.p_ws[0] = [
+            Vec3::new(-1.0, 1.0, -1.0),
+            Vec3::new(1.0, 1.0, -1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+        ];
+        let rc = RayCaster::new(&scene, &g);
+        for d in [
+            Vec3::new(-0.0, 1.0, 0.0),
+            Vec3::new(0.0, 1.0, -0.0),
+            Vec3::new(-0.0, 1.0, -0.0),
+        ] {
+            assert!(
+                rc.closest_hit(Vec3::ZERO, d, f32::INFINITY).is_some(),
+                "{d:?}"
+            );
+            assert!(!rc.unoccluded(Vec3::ZERO, d, f32::INFINITY), "{d:?}");
+        }
     }
 
     /// BVH closest hits equal a brute-force scan of every triangle.

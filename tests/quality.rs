@@ -270,3 +270,145 @@ fn denoising_reduces_error() {
     eprintln!("RMSE: {noisy:.5} noisy, {denoised:.5} denoised");
     assert!(denoised < 0.8 * noisy, "noisy {noisy}, denoised {denoised}");
 }
+
+/// A ground plane (albedo 0) under a uniform sky L: irradiance / π on a
+/// plane tilted by θ is L (1 + cos θ) / 2, which the L1 model a + n · b
+/// holds exactly: a = L/2, b = (0, L/2, 0). Checked per texel within 3 %
+/// (b_x, b_z within 3 % of L).
+#[test]
+fn directional_lightmaps_under_a_sky() {
+    let dir = temp_dir("sh");
+    let mut b = GltfBuilder::default();
+    let black = b.material([0.0; 3], [0.0; 3]);
+    let (p, i) = quad([-1.0, 0.0, -1.0], [0.0, 0.0, 2.0], [2.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(black));
+    b.node("ground", m);
+    let path = dir.join("ground.gltf");
+    b.write(&path);
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let sky = 0.8f32;
+    let cfg = BakeConfig {
+        texels_per_meter: 16.0,
+        sky: [sky; 3],
+        final_gather: 1024,
+        directional: radbake::config::DirectionalMode::Sh,
+        ..BakeConfig::default()
+    };
+    let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
+    let sh = bake.sh.as_ref().expect("directional maps");
+    let mut checked = 0;
+    for t in 0..bake.texels.len() {
+        let [x, y] = bake.texels.xy[t];
+        let at = |lm: &radbake::lightmap::Lightmaps| lm.pages[0][(y * lm.width + x) as usize].x;
+        let (a, bx, by, bz) = (at(&sh[0]), at(&sh[1]), at(&sh[2]), at(&sh[3]));
+        assert!((a - sky / 2.0).abs() < 0.03 * sky, "a = {a}");
+        assert!((by - sky / 2.0).abs() < 0.03 * sky, "b_y = {by}");
+        assert!(
+            bx.abs() < 0.03 * sky && bz.abs() < 0.03 * sky,
+            "b_x = {bx}, b_z = {bz}"
+        );
+        // A normal tilted 60° towards +x: L (1 + cos 60°) / 2.
+        let n = glam::Vec3::new(60f32.to_radians().sin(), 60f32.to_radians().cos(), 0.0);
+        let h = a + n.x * bx + n.y * by + n.z * bz;
+        assert!((h - sky * 0.75).abs() < 0.03 * sky, "H(60°) = {h}");
+        checked += 1;
+    }
+    assert!(checked > 500);
+}
+
+/// AO: a floor under a wider plate 0.5 m above it is open (1) for an AO
+/// distance of 0.25 m and mostly occluded for 2 m.
+#[test]
+fn ambient_occlusion() {
+    let dir = temp_dir("ao");
+    let mut b = GltfBuilder::default();
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = quad([-0.5, 0.0, -0.5], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let (p, i) = quad([-3.0, 0.5, -3.0], [6.0, 0.0, 0.0], [0.0, 0.0, 6.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("roof", m);
+    let path = dir.join("ao.gltf");
+    b.write(&path);
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let floor = 0u32;
+    let mean_ao = |distance: f32| {
+        let cfg = BakeConfig {
+            texels_per_meter: 16.0,
+            ao_distance: distance,
+            ..BakeConfig::default()
+        };
+        let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
+        let ao = bake.ao.as_ref().expect("AO pages");
+        let ids: Vec<usize> = (0..bake.texels.len())
+            .filter(|&t| bake.texels.instance[t] == floor)
+            .collect();
+        ids.iter()
+            .map(|&t| {
+                let [x, y] = bake.texels.xy[t];
+                ao.pages[0][(y * ao.width + x) as usize].x
+            })
+            .sum::<f32>()
+            / ids.len() as f32
+    };
+    let near = mean_ao(0.25);
+    let far = mean_ao(2.0);
+    assert!(near > 0.999, "nothing within 0.25 m: {near}");
+    // Open fraction within 2 m under a 6 m roof at 0.5 m: the cosine-weighted
+    // share of directions below ~14° elevation that miss the roof edge, a few %.
+    assert!(far < 0.1, "roof within 2 m: {far}");
+}
+
+/// Supersampling antialiases punctual shadow edges: a directional light and
+/// a half-plane occluder give binary texels at 1 sample and a band of
+/// partly lit texels at 4 × 4.
+#[test]
+fn supersampling_antialiases_shadow_edges() {
+    let dir = temp_dir("supersample");
+    let mut b = GltfBuilder::default();
+    let grey = b.material([0.0; 3], [0.0; 3]);
+    let (p, i) = quad([-1.0, 0.0, -1.0], [0.0, 0.0, 2.0], [2.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    // Occluder over x < 0.03 (not aligned with texel edges), facing down.
+    let (p, i) = quad([-3.0, 1.0, -3.0], [3.03, 0.0, 0.0], [0.0, 0.0, 6.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("blocker", m);
+    let mut doc = b.json();
+    doc["extensionsUsed"] = serde_json::json!(["KHR_lights_punctual"]);
+    doc["extensions"] = serde_json::json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 3.0}]}});
+    let down = [
+        -std::f32::consts::FRAC_1_SQRT_2,
+        0.0,
+        0.0,
+        std::f32::consts::FRAC_1_SQRT_2,
+    ];
+    doc["nodes"].as_array_mut().unwrap().push(serde_json::json!({"name": "sun", "rotation": down, "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+    doc["scenes"][0]["nodes"] = serde_json::json!([0, 1, 2]);
+    let path = dir.join("edge.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let partial = |s: u32| {
+        let cfg = BakeConfig {
+            texels_per_meter: 20.0,
+            supersample: s,
+            ..BakeConfig::default()
+        };
+        let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
+        let lit = 3.0 / std::f32::consts::PI;
+        (0..bake.texels.len())
+            .filter(|&t| bake.texels.instance[t] == 0)
+            .filter(|&t| {
+                let f = bake.lightmaps.texel_values[t].x / lit;
+                f > 0.05 && f < 0.95
+            })
+            .count()
+    };
+    let (one, four) = (partial(1), partial(4));
+    assert_eq!(one, 0, "centroid sampling gives hard texels");
+    assert!(
+        four >= 30,
+        "only {four} partly lit texels along a 2 m edge at 20 texels/m"
+    );
+}

@@ -127,6 +127,51 @@ pub fn write_lightmaps(out_dir: &Path, lightmaps: &Lightmaps) -> Result<Vec<Path
     Ok(written)
 }
 
+/// Writes the optional maps of a bake: directional pages
+/// `lightmap_<page>_sh_{a,x,y,z}.exr` (irradiance / π for a normal n =
+/// a + n_x x + n_y y + n_z z, world space) and AO pages `ao_<page>.png`
+/// (8-bit linear, 1 = unoccluded). Returns the paths written.
+///
+/// # Errors
+/// [`Error::Io`] / [`Error::Encode`].
+pub fn write_extra_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io {
+        path: out_dir.to_path_buf(),
+        source,
+    })?;
+    let mut written = Vec::new();
+    if let Some(sh) = &bake.sh {
+        for (lm, name) in sh.iter().zip(["a", "x", "y", "z"]) {
+            for page in 0..lm.pages.len() {
+                let path = out_dir.join(format!("lightmap_{page}_sh_{name}.exr"));
+                write_exr(&path, lm, page)?;
+                written.push(path);
+            }
+        }
+    }
+    if let Some(ao) = &bake.ao {
+        for page in 0..ao.pages.len() {
+            let path = out_dir.join(format!("ao_{page}.png"));
+            let img = image::GrayImage::from_fn(ao.width, ao.height, |x, y| {
+                image::Luma([(ao.pages[page][(y * ao.width + x) as usize]
+                    .x
+                    .clamp(0.0, 1.0)
+                    * 255.0)
+                    .round() as u8])
+            });
+            write_atomic(&path, |tmp| {
+                img.save_with_format(tmp, image::ImageFormat::Png)
+                    .map_err(|e| Error::Encode {
+                        path: path.clone(),
+                        message: e.to_string(),
+                    })
+            })?;
+            written.push(path);
+        }
+    }
+    Ok(written)
+}
+
 /// Writes `report.json` into `out_dir` (written last by the CLI, so its
 /// presence marks a finished bake).
 ///
