@@ -113,6 +113,12 @@ struct BakeArgs {
     /// Starting settings, below the config file and flags [default: medium].
     #[arg(long, value_enum)]
     preset: Option<Preset>,
+    /// Refuse scenes whose estimated bake memory exceeds this many megabytes (checked before reading geometry).
+    #[arg(long, value_name = "MB")]
+    max_memory: Option<u64>,
+    /// Give up after this many seconds (exit code 3, temporaries removed).
+    #[arg(long, value_name = "SECONDS")]
+    timeout: Option<f64>,
     /// Bake even if the outputs are up to date.
     #[arg(long)]
     force: bool,
@@ -277,8 +283,29 @@ fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
     let config = args
         .config()
         .map_err(|e| (classify(&e), format!("{e:#}")))?;
+    // Ctrl-C and --timeout: nothing but temporaries can be half-written
+    // (outputs are renamed into place), so remove ours and leave at once.
+    let out_dir = args.out.clone();
+    let _ = ctrlc::set_handler(move || {
+        radbake::output::remove_temporaries(&out_dir, Some(std::process::id()));
+        eprintln!("error: interrupted");
+        std::process::exit(130);
+    });
+    if let Some(secs) = args.timeout.filter(|s| s.is_finite() && *s > 0.0) {
+        let out_dir = args.out.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_secs_f64(secs));
+            radbake::output::remove_temporaries(&out_dir, Some(std::process::id()));
+            eprintln!("error: the bake took longer than --timeout {secs} s");
+            std::process::exit(3);
+        });
+    }
     let start = Instant::now();
-    let scene = radbake::scene::load(&args.scene, &Default::default()).map_err(lib_err)?;
+    let load_options = radbake::scene::LoadOptions {
+        max_memory: args.max_memory.map(|mb| mb.saturating_mul(1 << 20)),
+        ..Default::default()
+    };
+    let scene = radbake::scene::load(&args.scene, &load_options).map_err(lib_err)?;
     let import = StageTime {
         stage: "import".into(),
         seconds: start.elapsed().as_secs_f64(),

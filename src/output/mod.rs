@@ -52,6 +52,34 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Res
     result
 }
 
+/// Removes temporary files left in `out_dir` by [`write_atomic`] (names
+/// `.<file>.<pid>.tmp.<ext>`): those of process `pid`, or all of them
+/// (stale ones from a killed bake) when `pid` is `None`.
+pub fn remove_temporaries(out_dir: &Path, pid: Option<u32>) {
+    let Ok(entries) = std::fs::read_dir(out_dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some(rest) = name.strip_prefix('.') else {
+            continue;
+        };
+        let Some(pos) = rest.rfind(".tmp.") else {
+            continue;
+        };
+        let before = &rest[..pos];
+        let Some(dot) = before.rfind('.') else {
+            continue;
+        };
+        let Ok(file_pid) = before[dot + 1..].parse::<u32>() else {
+            continue;
+        };
+        if pid.is_none_or(|p| p == file_pid) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
 /// Writes bytes atomically.
 ///
 /// # Errors
@@ -115,6 +143,8 @@ pub fn write_lightmaps(out_dir: &Path, lightmaps: &Lightmaps) -> Result<Vec<Path
         path: out_dir.to_path_buf(),
         source,
     })?;
+    // Stale temporaries of a killed bake.
+    remove_temporaries(out_dir, None);
     let mut written = Vec::new();
     for page in 0..lightmaps.pages.len() {
         let exr = out_dir.join(format!("lightmap_{page}.exr"));

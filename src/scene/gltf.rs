@@ -27,6 +27,9 @@ pub struct LoadOptions {
     pub max_image_dimension: u32,
     /// Largest decoded image allocation (bytes).
     pub max_image_bytes: u64,
+    /// Refuse scenes whose estimated bake memory exceeds this many bytes
+    /// (estimated from accessor counts before any geometry is read).
+    pub max_memory: Option<u64>,
 }
 
 impl Default for LoadOptions {
@@ -35,6 +38,7 @@ impl Default for LoadOptions {
             max_file_bytes: 2 << 30,
             max_image_dimension: 16384,
             max_image_bytes: 1 << 30,
+            max_memory: None,
         }
     }
 }
@@ -193,6 +197,18 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
     })?;
     let (buffers, mut files) = load_buffers(&ctx, &gltf)?;
     check_accessors(&ctx, &gltf.document, &buffers)?;
+    if let Some(limit) = options.max_memory {
+        let estimate = estimate_memory(&gltf.document);
+        if estimate > limit {
+            return Err(Error::Limit(format!(
+                "{}: baking this scene needs an estimated {} MB ({} instanced triangles), over the {} MB memory limit",
+                path.display(),
+                estimate >> 20,
+                estimate / BYTES_PER_TRIANGLE,
+                limit >> 20
+            )));
+        }
+    }
 
     let mut scene = Scene::default();
     // The document as written (for the baked glTF's round trip) and the
@@ -359,6 +375,43 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
 }
 
 /// Every buffer's bytes, and the external files read.
+/// Bake memory per instanced triangle (world geometry, BVH, atlas, texels
+/// and patches at ordinary densities), measured on the shipped scenes with
+/// margin.
+const BYTES_PER_TRIANGLE: u64 = 1024;
+
+/// Estimated bake memory from accessor counts and node instancing alone.
+fn estimate_memory(doc: &gltf::Document) -> u64 {
+    let mut uses: HashMap<usize, u64> = HashMap::new();
+    let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+        Some(s) => s.nodes().collect(),
+        None => return 0,
+    };
+    let mut stack: Vec<(gltf::Node, usize)> = roots.into_iter().map(|n| (n, 0)).collect();
+    while let Some((node, depth)) = stack.pop() {
+        if depth > MAX_NODE_DEPTH {
+            continue;
+        }
+        if let Some(m) = node.mesh() {
+            *uses.entry(m.index()).or_default() += 1;
+        }
+        stack.extend(node.children().map(|c| (c, depth + 1)));
+    }
+    let mut triangles = 0u64;
+    for mesh in doc.meshes() {
+        let n = uses.get(&mesh.index()).copied().unwrap_or(0);
+        for prim in mesh.primitives() {
+            let count = prim
+                .indices()
+                .map(|a| a.count())
+                .or_else(|| prim.get(&gltf::Semantic::Positions).map(|a| a.count()))
+                .unwrap_or(0) as u64;
+            triangles = triangles.saturating_add(n.saturating_mul(count / 3));
+        }
+    }
+    triangles.saturating_mul(BYTES_PER_TRIANGLE)
+}
+
 fn load_buffers(ctx: &Ctx, gltf: &gltf::Gltf) -> Result<(Vec<Vec<u8>>, Vec<PathBuf>)> {
     let mut out = Vec::new();
     let mut files = Vec::new();
