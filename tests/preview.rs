@@ -248,20 +248,41 @@ fn headless_cornell_matches_golden() {
         golden.display(),
         png.display()
     );
-    // The golden itself is a lit room, not a blank frame: the back wall at
-    // the centre is bright and the red/green walls are on the left/right.
+    // The golden itself is the lit room, not a blank frame: the lamp is
+    // white, the walls left and right of the centre are red and green, the
+    // back wall is lit.
     let (w, h) = b.dimensions();
-    let centre = b.get_pixel(w / 2, h / 2);
+    let mean = |x0: f32, x1: f32, y0: f32, y1: f32| {
+        let (mut sum, mut n) = ([0f64; 3], 0f64);
+        for y in (y0 * h as f32) as u32..(y1 * h as f32) as u32 {
+            for x in (x0 * w as f32) as u32..(x1 * w as f32) as u32 {
+                let p = b.get_pixel(x, y);
+                (0..3).for_each(|c| sum[c] += p[c] as f64);
+                n += 1.0;
+            }
+        }
+        sum.map(|s| s / n)
+    };
+    let lamp = b
+        .pixels()
+        .filter(|p| p[0] > 240 && p[1] > 240 && p[2] > 240)
+        .count();
+    assert!(lamp > 20, "no white lamp ({lamp} pixels)");
+    let left = mean(0.15, 0.25, 0.3, 0.6);
+    let right = mean(0.75, 0.85, 0.3, 0.6);
+    let back = mean(0.45, 0.55, 0.25, 0.35);
+    eprintln!("left {left:?} right {right:?} back {back:?}");
     assert!(
-        centre[0] > 60 && centre[1] > 60,
-        "centre {centre:?} is dark"
+        left[0] > 20.0 && left[0] > 3.0 * left[1],
+        "left wall {left:?} is not red"
     );
-    let left = b.get_pixel(w / 20 + 2, h / 2);
-    let right = b.get_pixel(w - w / 20 - 2, h / 2);
-    assert!(left[0] > left[1] + 20, "left wall {left:?} is not red");
     assert!(
-        right[1] > right[0] + 20,
+        right[1] > 20.0 && right[1] > 1.5 * right[0],
         "right wall {right:?} is not green"
+    );
+    assert!(
+        back[0] > 50.0 && back[1] > 40.0,
+        "back wall {back:?} is dark"
     );
 }
 
