@@ -112,7 +112,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
                 }
             }
             if border {
-                color = vec3<f32>(1.0, 0.15, 0.05);
+                color = vec3<f32>(1.0, 0.02, 0.0);
             }
         }
         default: {

@@ -308,7 +308,7 @@ fn headless_debug_views_and_timing() {
     for (view, img) in &renders {
         assert!(differs(&lit, img), "view {view} looks like lit");
     }
-    // Chart borders are drawn in red (1, 0.15, 0.05).
+    // Chart borders are drawn in red (1, 0.02, 0).
     let charts = &renders[3].1;
     let red = charts
         .pixels()

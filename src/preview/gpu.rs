@@ -103,8 +103,11 @@ impl Vertex {
     }
 }
 
-/// Rust struct layouts, for the WGSL layout test: (name, size, field offsets).
-pub fn layouts() -> Vec<(&'static str, usize, Vec<(&'static str, usize)>)> {
+/// A Rust struct's layout: (name, size, (field, offset) in declaration order).
+pub type Layout = (&'static str, usize, Vec<(&'static str, usize)>);
+
+/// Rust struct layouts, for the WGSL layout test.
+pub fn layouts() -> Vec<Layout> {
     use std::mem::{offset_of, size_of};
     vec![
         (

@@ -8,9 +8,9 @@
 //! and the materials, and each glTF material's `MOZ_lightmap` extension is
 //! parsed from the document's JSON ([`crate::scene::SourceDocument`]): its
 //! `index` names the page's texture (an sRGB PNG embedded in the `.glb`), its
-//! `KHR_texture_transform` the instance's atlas rectangle (atlas UV = offset
-//! + scale × `TEXCOORD_1`), and its `intensity` k gives the linear value
-//! `srgb_to_linear(png) × k / π` (incident irradiance / π).
+//! `KHR_texture_transform` the instance's atlas rectangle (atlas UV =
+//! offset + scale × `TEXCOORD_1`), and its `intensity` k gives the linear
+//! value `srgb_to_linear(png) × k / π` (incident irradiance / π).
 
 use super::gpu::{self, Vertex};
 use crate::scene::{Alpha, Scene, TextureRef};
