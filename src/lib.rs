@@ -36,6 +36,8 @@ pub mod incremental;
 pub mod lightmap;
 pub mod output;
 pub mod patches;
+#[cfg(feature = "preview")]
+pub mod preview;
 pub mod progress;
 pub mod raycast;
 pub mod report;

@@ -31,6 +31,108 @@ struct Cli {
 enum Command {
     /// Bake lightmaps for a .gltf/.glb scene.
     Bake(BakeArgs),
+    /// Look at a baked .glb in a window (or render it offscreen with --headless).
+    #[cfg(feature = "preview")]
+    Preview(PreviewArgs),
+}
+
+#[cfg(feature = "preview")]
+#[derive(Args)]
+struct PreviewArgs {
+    /// The baked scene (`<stem>.baked.glb` from `radbake bake`).
+    scene: PathBuf,
+    /// Render offscreen to --out instead of opening a window.
+    #[arg(long, requires = "out")]
+    headless: bool,
+    /// Output PNG of --headless (written atomically).
+    #[arg(long, short, requires = "headless")]
+    out: Option<PathBuf>,
+    /// Image (headless) or window size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Start at the glTF camera of this name [default: the first camera, or a framing of the scene].
+    #[arg(long, conflicts_with = "look_from")]
+    camera: Option<String>,
+    /// Start at this eye position `x,y,z` (world, metres).
+    #[arg(long, value_parser = parse_vec3)]
+    look_from: Option<[f32; 3]>,
+    /// Look towards `x,y,z` [default: the centre of the scene].
+    #[arg(long, value_parser = parse_vec3, requires = "look_from")]
+    look_at: Option<[f32; 3]>,
+    /// Headless: render N frames and print ms/frame. Window: render N frames, then exit.
+    #[arg(long)]
+    frames: Option<u32>,
+    /// Window: after --frames frames, save the last view here (PNG) and exit.
+    #[arg(long, requires = "frames", conflicts_with = "headless")]
+    screenshot: Option<PathBuf>,
+    /// First debug view.
+    #[arg(long, value_enum, default_value = "lit")]
+    view: radbake::preview::ViewMode,
+    /// Bicubic (B-spline) lightmap filtering instead of bilinear.
+    #[arg(long)]
+    bicubic: bool,
+    /// Exposure in stops (EV).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    /// Tone map of the HDR values.
+    #[arg(long, value_enum, default_value = "aces")]
+    tone_map: radbake::preview::ToneMap,
+}
+
+#[cfg(feature = "preview")]
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| "expected WIDTHxHEIGHT, e.g. 1280x720".to_string())?;
+    let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("`{v}`: {e}"));
+    let (w, h) = (parse(w)?, parse(h)?);
+    if w == 0 || h == 0 || w > 16384 || h > 16384 {
+        return Err("width and height must be 1..=16384".into());
+    }
+    Ok((w, h))
+}
+
+#[cfg(feature = "preview")]
+fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    match parse_rgb(s)? {
+        v if s.split(',').count() == 3 => Ok(v),
+        _ => Err("expected x,y,z".into()),
+    }
+}
+
+#[cfg(feature = "preview")]
+fn run_preview(args: &PreviewArgs) -> Result<(), (u8, String)> {
+    use radbake::preview::{Options, Settings, Viewpoint};
+    let viewpoint = match (&args.camera, args.look_from) {
+        (Some(name), _) => Viewpoint::Camera(name.clone()),
+        (None, Some(from)) => Viewpoint::LookAt {
+            from: from.into(),
+            at: args.look_at.map(Into::into),
+        },
+        (None, None) => Viewpoint::Auto,
+    };
+    let opts = Options {
+        scene: args.scene.clone(),
+        headless: args.headless,
+        out: args.out.clone(),
+        size: args.size,
+        viewpoint,
+        frames: args.frames,
+        screenshot: args.screenshot.clone(),
+        settings: Settings {
+            view: args.view,
+            bicubic: args.bicubic,
+            exposure_ev: args.exposure,
+            tone_map: args.tone_map,
+        },
+    };
+    radbake::preview::run(&opts).map_err(|e| {
+        let code = match e.downcast_ref::<radbake::Error>() {
+            Some(le) if le.is_input_error() => 1,
+            _ => 3,
+        };
+        (code, format!("{e:#}"))
+    })
 }
 
 #[derive(Args)]
@@ -429,6 +531,8 @@ fn main() -> ExitCode {
     }));
     let result = std::panic::catch_unwind(|| match &cli.command {
         Command::Bake(args) => run_bake(args),
+        #[cfg(feature = "preview")]
+        Command::Preview(args) => run_preview(args),
     });
     match result {
         Ok(Ok(())) => ExitCode::SUCCESS,

@@ -101,14 +101,21 @@ pub fn write_exr(path: &Path, lightmaps: &Lightmaps, page: usize) -> Result<()> 
     let (w, h) = (lightmaps.width as usize, lightmaps.height as usize);
     let values = &lightmaps.pages[page];
     write_atomic(path, |tmp| {
-        exr::prelude::write_rgb_file(tmp, w, h, |x, y| {
+        use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage as _};
+        // Compressed serially: exr's parallel writer stores blocks in the
+        // order they finish, which varies from run to run.
+        let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
             let v = values[y * w + x];
             (v.x, v.y, v.z)
-        })
-        .map_err(|e| Error::Encode {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })
+        });
+        Image::from_channels((w, h), channels)
+            .write()
+            .non_parallel()
+            .to_file(tmp)
+            .map_err(|e| Error::Encode {
+                path: path.to_path_buf(),
+                message: e.to_string(),
+            })
     })
 }
 

@@ -1,0 +1,116 @@
+// Shared pieces of the radbake preview shaders: the uniform structs (their
+// Rust twins are in src/preview/gpu.rs; tests/preview.rs checks the layouts
+// with naga), colour transforms and lightmap filtering.
+//
+// WGSL has no #include: the Rust side concatenates this file in front of
+// each shader that uses it.
+
+// Per frame (group 0, binding 0).
+struct Globals {
+    // clip_from_world (reverse-Z, infinite far plane).
+    view_proj: mat4x4<f32>,
+    // xyz: eye position (world); w: unused.
+    camera_pos: vec4<f32>,
+    // Linear exposure multiplier, 2^EV.
+    exposure: f32,
+    // VIEW_* below.
+    view_mode: u32,
+    // 0: bilinear, 1: bicubic (B-spline) lightmap filtering.
+    bicubic: u32,
+    // 0: ACES fitted, 1: none (clamp).
+    tone_map: u32,
+    // Render target size in pixels.
+    viewport: vec2<f32>,
+    _pad: vec2<f32>,
+}
+
+// Per material (group 1, binding 0).
+struct Material {
+    // baseColorFactor (linear RGBA).
+    base_color: vec4<f32>,
+    // Emitted radiance factor (rgb); w unused.
+    emissive: vec4<f32>,
+    // KHR_texture_transform of the base colour texture as a 2×3 matrix:
+    // uv' = (dot(row0.xy, uv) + row0.z, dot(row1.xy, uv) + row1.z).
+    base_uv0: vec4<f32>,
+    base_uv1: vec4<f32>,
+    // The same for the emissive texture.
+    emissive_uv0: vec4<f32>,
+    emissive_uv1: vec4<f32>,
+    // MOZ_lightmap KHR_texture_transform: xy offset (uv_rect min), zw scale.
+    lightmap_rect: vec4<f32>,
+    // Linear lightmap value = sRGB-decoded texel × this (MOZ_lightmap intensity / π).
+    lightmap_scale: f32,
+    // FLAG_* below.
+    flags: u32,
+    // alphaCutoff for MASK, or a negative number for opaque.
+    alpha_cutoff: f32,
+    _pad: f32,
+}
+
+const VIEW_LIT: u32 = 0u;
+const VIEW_LIGHTMAP: u32 = 1u;
+const VIEW_ALBEDO: u32 = 2u;
+const VIEW_CHECKER: u32 = 3u;
+const VIEW_CHARTS: u32 = 4u;
+
+const FLAG_BASE_TEXTURE: u32 = 1u;
+const FLAG_EMISSIVE_TEXTURE: u32 = 2u;
+const FLAG_LIGHTMAP: u32 = 4u;
+
+fn apply_uv_transform(row0: vec4<f32>, row1: vec4<f32>, uv: vec2<f32>) -> vec2<f32> {
+    return vec2<f32>(dot(row0.xy, uv) + row0.z, dot(row1.xy, uv) + row1.z);
+}
+
+// ACES filmic tone map, Stephen Hill's fit of the RRT + ODT (input and
+// output matrices included); linear sRGB in, linear display values in [0, 1] out.
+fn tone_map_aces(color: vec3<f32>) -> vec3<f32> {
+    let aces_in = mat3x3<f32>(
+        vec3<f32>(0.59719, 0.07600, 0.02840),
+        vec3<f32>(0.35458, 0.90834, 0.13383),
+        vec3<f32>(0.04823, 0.01566, 0.83777),
+    );
+    let aces_out = mat3x3<f32>(
+        vec3<f32>(1.60475, -0.10208, -0.00327),
+        vec3<f32>(-0.53108, 1.10813, -0.07276),
+        vec3<f32>(-0.07367, -0.00605, 1.07602),
+    );
+    let v = aces_in * color;
+    let a = v * (v + 0.0245786) - 0.000090537;
+    let b = v * (0.983729 * v + 0.4329510) + 0.238081;
+    return clamp(aces_out * (a / b), vec3<f32>(0.0), vec3<f32>(1.0));
+}
+
+fn tone_map(color: vec3<f32>, exposure: f32, mode: u32) -> vec3<f32> {
+    let c = max(color * exposure, vec3<f32>(0.0));
+    if mode == 0u {
+        return tone_map_aces(c);
+    }
+    return clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
+}
+
+// Cubic B-spline filtering from four bilinear taps (Sigg & Hadwiger, GPU
+// Gems 2 ch. 20): smooth across texel boundaries, slightly blurrier than
+// bilinear, no ringing. Level 0 only (lightmaps have no mips).
+fn sample_bicubic(t: texture_2d<f32>, s: sampler, uv: vec2<f32>) -> vec4<f32> {
+    let size = vec2<f32>(textureDimensions(t, 0));
+    let p = uv * size - 0.5;
+    let i = floor(p);
+    let f = p - i;
+    let f2 = f * f;
+    let f3 = f2 * f;
+    let w0 = (-f3 + 3.0 * f2 - 3.0 * f + 1.0) / 6.0;
+    let w1 = (3.0 * f3 - 6.0 * f2 + 4.0) / 6.0;
+    let w2 = (-3.0 * f3 + 3.0 * f2 + 3.0 * f + 1.0) / 6.0;
+    let w3 = f3 / 6.0;
+    let g0 = w0 + w1;
+    let g1 = w2 + w3;
+    // Texel-centre coordinates of the two combined taps per axis.
+    let c0 = (i - 1.0 + w1 / g0 + 0.5) / size;
+    let c1 = (i + 1.0 + w3 / g1 + 0.5) / size;
+    let s00 = textureSampleLevel(t, s, vec2<f32>(c0.x, c0.y), 0.0);
+    let s10 = textureSampleLevel(t, s, vec2<f32>(c1.x, c0.y), 0.0);
+    let s01 = textureSampleLevel(t, s, vec2<f32>(c0.x, c1.y), 0.0);
+    let s11 = textureSampleLevel(t, s, vec2<f32>(c1.x, c1.y), 0.0);
+    return g0.y * (g0.x * s00 + g1.x * s10) + g1.y * (g0.x * s01 + g1.x * s11);
+}

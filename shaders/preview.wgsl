@@ -1,0 +1,124 @@
+// The preview's one shader: base colour × lightmap + emissive, tone mapped,
+// with the debug views. Prefixed with common.wgsl by the Rust side.
+
+@group(0) @binding(0) var<uniform> globals: Globals;
+
+@group(1) @binding(0) var<uniform> material: Material;
+@group(1) @binding(1) var base_texture: texture_2d<f32>;
+@group(1) @binding(2) var base_sampler: sampler;
+@group(1) @binding(3) var emissive_texture: texture_2d<f32>;
+@group(1) @binding(4) var emissive_sampler: sampler;
+@group(1) @binding(5) var lightmap_texture: texture_2d<f32>;
+@group(1) @binding(6) var lightmap_sampler: sampler;
+
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv0: vec2<f32>,
+    @location(3) uv1: vec2<f32>,
+    // Bits 0-1: the vertex's corner in its triangle; bits 2-4: which of the
+    // triangle's edges (edge k joins corners k and k+1) are chart borders.
+    @location(4) corner_edges: u32,
+}
+
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) uv0: vec2<f32>,
+    @location(3) uv1: vec2<f32>,
+    @location(4) bary: vec3<f32>,
+    @location(5) @interpolate(flat) edges: u32,
+}
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    var out: VertexOut;
+    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.normal = v.normal;
+    out.uv0 = v.uv0;
+    out.uv1 = v.uv1;
+    let corner = v.corner_edges & 3u;
+    out.bary = vec3<f32>(f32(corner == 0u), f32(corner == 1u), f32(corner == 2u));
+    out.edges = v.corner_edges >> 2u;
+    return out;
+}
+
+fn lightmap_at(uv: vec2<f32>) -> vec3<f32> {
+    var lm: vec4<f32>;
+    if globals.bicubic != 0u {
+        lm = sample_bicubic(lightmap_texture, lightmap_sampler, uv);
+    } else {
+        lm = textureSampleLevel(lightmap_texture, lightmap_sampler, uv, 0.0);
+    }
+    return lm.rgb * material.lightmap_scale;
+}
+
+@fragment
+fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
+    // Derivatives first, in uniform control flow.
+    let bary_width = fwidth(in.bary);
+
+    var base = material.base_color;
+    if (material.flags & FLAG_BASE_TEXTURE) != 0u {
+        let uv = apply_uv_transform(material.base_uv0, material.base_uv1, in.uv0);
+        base = base * textureSampleLevel(base_texture, base_sampler, uv, 0.0);
+    }
+    if material.alpha_cutoff >= 0.0 && base.a < material.alpha_cutoff {
+        discard;
+    }
+    var emissive = material.emissive.rgb;
+    if (material.flags & FLAG_EMISSIVE_TEXTURE) != 0u {
+        let uv = apply_uv_transform(material.emissive_uv0, material.emissive_uv1, in.uv0);
+        emissive = emissive * textureSampleLevel(emissive_texture, emissive_sampler, uv, 0.0).rgb;
+    }
+    let atlas_uv = material.lightmap_rect.xy + in.uv1 * material.lightmap_rect.zw;
+    var lightmap = vec3<f32>(0.0);
+    if (material.flags & FLAG_LIGHTMAP) != 0u {
+        lightmap = lightmap_at(atlas_uv);
+    }
+    let lit = base.rgb * lightmap + emissive;
+
+    var color: vec3<f32>;
+    switch globals.view_mode {
+        case VIEW_LIGHTMAP: {
+            color = tone_map(lightmap, globals.exposure, globals.tone_map);
+        }
+        case VIEW_ALBEDO: {
+            color = base.rgb;
+        }
+        case VIEW_CHECKER: {
+            // One checker square per lightmap texel; surfaces without a
+            // lightmap are magenta.
+            if (material.flags & FLAG_LIGHTMAP) != 0u {
+                let size = vec2<f32>(textureDimensions(lightmap_texture, 0));
+                let t = vec2<i32>(floor(atlas_uv * size));
+                let odd = ((t.x + t.y) & 1) != 0;
+                let shade = tone_map(lit, globals.exposure, globals.tone_map);
+                color = select(shade * 0.55 + 0.1, shade * 0.85 + 0.15, odd);
+            } else {
+                color = vec3<f32>(1.0, 0.0, 1.0);
+            }
+        }
+        case VIEW_CHARTS: {
+            color = tone_map(lit, globals.exposure, globals.tone_map) * 0.8;
+            // Distance (in pixels) to each edge: edge k is opposite corner k+2.
+            let d = in.bary.zxy / max(bary_width.zxy, vec3<f32>(1e-6));
+            var border = false;
+            for (var k = 0u; k < 3u; k++) {
+                if ((in.edges >> k) & 1u) != 0u && d[k] < 1.5 {
+                    border = true;
+                }
+            }
+            if border {
+                color = vec3<f32>(1.0, 0.02, 0.0);
+            }
+        }
+        default: {
+            color = tone_map(lit, globals.exposure, globals.tone_map);
+        }
+    }
+    // The render target is sRGB: the hardware encodes.
+    return vec4<f32>(color, 1.0);
+}

@@ -1,0 +1,349 @@
+//! What the preview draws, built on the CPU from a baked `.glb`: world-space
+//! triangles grouped by material, the materials' GPU parameters, and the
+//! lightmap pages.
+//!
+//! **How lightmaps are loaded.** Only the `.glb` is read (no `manifest.json`
+//! or EXR is needed, so a baked `.glb` can be previewed anywhere):
+//! [`crate::scene::load`] gives the meshes with `TEXCOORD_1` (`Mesh::uv1`)
+//! and the materials, and each glTF material's `MOZ_lightmap` extension is
+//! parsed from the document's JSON ([`crate::scene::SourceDocument`]): its
+//! `index` names the page's texture (an sRGB PNG embedded in the `.glb`), its
+//! `KHR_texture_transform` the instance's atlas rectangle (atlas UV =
+//! offset + scale × `TEXCOORD_1`), and its `intensity` k gives the linear
+//! value `srgb_to_linear(png) × k / π` (incident irradiance / π).
+
+use super::gpu::{self, Vertex};
+use crate::scene::{Alpha, Scene, TextureRef};
+use anyhow::{anyhow, Context as _, Result};
+use glam::{Vec2, Vec3};
+use std::collections::HashMap;
+
+/// A material's `MOZ_lightmap`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightmapRef {
+    /// Index into [`Model::lightmaps`].
+    pub page: usize,
+    /// `MOZ_lightmap.intensity` (π × the page's PNG scale).
+    pub intensity: f32,
+    /// `KHR_texture_transform.offset` (the instance's `uv_rect` min).
+    pub offset: Vec2,
+    /// `KHR_texture_transform.scale` (`uv_rect` max − min).
+    pub scale: Vec2,
+}
+
+/// An RGBA8 image whose RGB is sRGB-encoded.
+#[derive(Clone, Debug)]
+pub struct Image {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Row-major RGBA8.
+    pub rgba: Vec<u8>,
+}
+
+/// A range of [`Model::vertices`] drawn with one material.
+#[derive(Clone, Debug)]
+pub struct Batch {
+    /// Index into [`Model::materials`].
+    pub material: usize,
+    /// Vertex range.
+    pub vertices: std::ops::Range<u32>,
+}
+
+/// A material as the preview draws it.
+#[derive(Clone, Debug)]
+pub struct PreviewMaterial {
+    /// GPU parameters.
+    pub gpu: gpu::Material,
+    /// Base colour texture (index into [`Scene::textures`]).
+    pub base_texture: Option<u32>,
+    /// Emissive texture (index into [`Scene::textures`]).
+    pub emissive_texture: Option<u32>,
+    /// Lightmap page (index into [`Model::lightmaps`]).
+    pub lightmap: Option<usize>,
+    /// Drawn without back-face culling.
+    pub double_sided: bool,
+}
+
+/// Everything the renderer uploads.
+pub struct Model {
+    /// The imported scene (textures, cameras).
+    pub scene: Scene,
+    /// Non-indexed world-space triangles, sorted by material.
+    pub vertices: Vec<Vertex>,
+    /// Draw ranges, one per material used.
+    pub batches: Vec<Batch>,
+    /// Materials, parallel to [`Scene::materials`].
+    pub materials: Vec<PreviewMaterial>,
+    /// Lightmap pages (sRGB RGBA8).
+    pub lightmaps: Vec<Image>,
+    /// World bounds of all vertices (min, max).
+    pub bounds: (Vec3, Vec3),
+}
+
+/// `MOZ_lightmap` of every glTF material (None where absent), and the glTF
+/// texture indices they reference, in page order.
+pub fn parse_moz_lightmaps(
+    json: &serde_json::Value,
+) -> Result<(Vec<Option<LightmapRef>>, Vec<usize>)> {
+    let mut pages: Vec<usize> = Vec::new();
+    let mut out = Vec::new();
+    let empty = Vec::new();
+    let materials = json["materials"].as_array().unwrap_or(&empty);
+    for (i, m) in materials.iter().enumerate() {
+        let Some(lm) = m.pointer("/extensions/MOZ_lightmap") else {
+            out.push(None);
+            continue;
+        };
+        let texture = lm["index"]
+            .as_u64()
+            .ok_or_else(|| anyhow!("materials[{i}].extensions.MOZ_lightmap: no texture index"))?
+            as usize;
+        let intensity = lm["intensity"].as_f64().unwrap_or(1.0) as f32;
+        let t = lm.pointer("/extensions/KHR_texture_transform");
+        let vec2 = |key: &str, default: Vec2| -> Vec2 {
+            t.and_then(|t| t[key].as_array())
+                .and_then(|a| {
+                    Some(Vec2::new(
+                        a.first()?.as_f64()? as f32,
+                        a.get(1)?.as_f64()? as f32,
+                    ))
+                })
+                .unwrap_or(default)
+        };
+        let page = match pages.iter().position(|&p| p == texture) {
+            Some(p) => p,
+            None => {
+                pages.push(texture);
+                pages.len() - 1
+            }
+        };
+        out.push(Some(LightmapRef {
+            page,
+            intensity,
+            offset: vec2("offset", Vec2::ZERO),
+            scale: vec2("scale", Vec2::ONE),
+        }));
+    }
+    Ok((out, pages))
+}
+
+/// Decodes glTF texture `texture`'s image from the loaded document.
+fn decode_texture(scene: &Scene, texture: usize) -> Result<Image> {
+    let src = scene
+        .source
+        .as_ref()
+        .ok_or_else(|| anyhow!("the scene has no source document"))?;
+    let image = src.json["textures"][texture]["source"]
+        .as_u64()
+        .ok_or_else(|| anyhow!("textures[{texture}] has no image source"))?
+        as usize;
+    let (bytes, _) = src
+        .images
+        .get(image)
+        .and_then(Option::as_ref)
+        .ok_or_else(|| anyhow!("images[{image}] was not loaded"))?;
+    let img = image::load_from_memory(bytes)
+        .with_context(|| format!("cannot decode lightmap images[{image}]"))?
+        .to_rgba8();
+    Ok(Image {
+        width: img.width(),
+        height: img.height(),
+        rgba: img.into_raw(),
+    })
+}
+
+/// The 2×3 matrix rows of `KHR_texture_transform` (see [`TextureRef::transform_uv`]).
+fn uv_rows(t: Option<&TextureRef>) -> ([f32; 4], [f32; 4]) {
+    match t {
+        Some(t) => {
+            let (sin, cos) = t.rotation.sin_cos();
+            (
+                [cos * t.scale.x, sin * t.scale.y, t.offset.x, 0.0],
+                [-sin * t.scale.x, cos * t.scale.y, t.offset.y, 0.0],
+            )
+        }
+        None => ([1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]),
+    }
+}
+
+/// For each triangle of a mesh, the mask of its edges that lie on a chart
+/// border: edges not shared, with the same positions *and* the same
+/// `TEXCOORD_1` at both ends, by another triangle of the mesh (so UV seams
+/// and open boundaries both count).
+pub fn chart_border_edges(positions: &[Vec3], uv1: &[Vec2], triangles: &[[u32; 3]]) -> Vec<u8> {
+    type Key = ([u32; 5], [u32; 5]);
+    let corner = |v: u32| -> [u32; 5] {
+        let p = positions[v as usize];
+        let u = uv1[v as usize];
+        [p.x, p.y, p.z, u.x, u.y].map(|f| (f + 0.0).to_bits())
+    };
+    let key = |a: u32, b: u32| -> Key {
+        let (ka, kb) = (corner(a), corner(b));
+        if ka <= kb {
+            (ka, kb)
+        } else {
+            (kb, ka)
+        }
+    };
+    let mut count: HashMap<Key, u32> = HashMap::new();
+    for t in triangles {
+        for k in 0..3 {
+            *count.entry(key(t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    triangles
+        .iter()
+        .map(|t| {
+            (0..3).fold(0u8, |mask, k| {
+                if count[&key(t[k], t[(k + 1) % 3])] == 1 {
+                    mask | (1 << k)
+                } else {
+                    mask
+                }
+            })
+        })
+        .collect()
+}
+
+impl Model {
+    /// Loads a baked `.glb` (or any glTF; surfaces without `MOZ_lightmap`
+    /// get no lightmap).
+    pub fn load(path: &std::path::Path) -> Result<Model> {
+        let scene = crate::scene::load(path, &Default::default())
+            .with_context(|| format!("cannot load {}", path.display()))?;
+        let (moz, pages) = match &scene.source {
+            Some(src) => parse_moz_lightmaps(&src.json)?,
+            None => (Vec::new(), Vec::new()),
+        };
+        let lightmaps = pages
+            .iter()
+            .map(|&t| decode_texture(&scene, t))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Self::build(scene, &moz, lightmaps))
+    }
+
+    /// Builds the model from an imported scene and its materials' lightmaps
+    /// (`moz[m]` for glTF material m).
+    pub fn build(scene: Scene, moz: &[Option<LightmapRef>], lightmaps: Vec<Image>) -> Model {
+        let materials: Vec<PreviewMaterial> = scene
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                let lm = moz
+                    .get(i)
+                    .copied()
+                    .flatten()
+                    .filter(|l| l.page < lightmaps.len());
+                let (base_uv0, base_uv1) = uv_rows(m.albedo_texture.as_ref());
+                let (emissive_uv0, emissive_uv1) = uv_rows(m.emission_texture.as_ref());
+                let mut flags = 0;
+                if m.albedo_texture.is_some() {
+                    flags |= gpu::FLAG_BASE_TEXTURE;
+                }
+                if m.emission_texture.is_some() {
+                    flags |= gpu::FLAG_EMISSIVE_TEXTURE;
+                }
+                if lm.is_some() {
+                    flags |= gpu::FLAG_LIGHTMAP;
+                }
+                let lm_rect = lm.map_or([0.0, 0.0, 1.0, 1.0], |l| {
+                    [l.offset.x, l.offset.y, l.scale.x, l.scale.y]
+                });
+                PreviewMaterial {
+                    gpu: gpu::Material {
+                        base_color: [m.albedo.x, m.albedo.y, m.albedo.z, m.alpha_factor],
+                        emissive: [m.emission.x, m.emission.y, m.emission.z, 0.0],
+                        base_uv0,
+                        base_uv1,
+                        emissive_uv0,
+                        emissive_uv1,
+                        lightmap_rect: lm_rect,
+                        lightmap_scale: lm.map_or(0.0, |l| l.intensity / std::f32::consts::PI),
+                        flags,
+                        alpha_cutoff: match m.alpha {
+                            Alpha::Opaque => -1.0,
+                            Alpha::Mask { cutoff } => cutoff,
+                        },
+                        _pad: 0.0,
+                    },
+                    base_texture: m.albedo_texture.as_ref().map(|t| t.texture),
+                    emissive_texture: m.emission_texture.as_ref().map(|t| t.texture),
+                    lightmap: lm.map(|l| l.page),
+                    double_sided: m.double_sided,
+                }
+            })
+            .collect();
+
+        // Chart borders once per mesh.
+        let borders: Vec<Vec<u8>> = scene
+            .meshes
+            .iter()
+            .map(|mesh| match &mesh.uv1 {
+                Some(uv1) => chart_border_edges(&mesh.positions, uv1, &mesh.triangles),
+                None => vec![0; mesh.triangles.len()],
+            })
+            .collect();
+        // Triangles per material, then concatenated.
+        let mut per_material: Vec<Vec<Vertex>> = vec![Vec::new(); materials.len()];
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for inst in &scene.instances {
+            let mesh = &scene.meshes[inst.mesh as usize];
+            let m = inst.world_from_local;
+            let nm = inst.normal_matrix();
+            let mirrored = inst.mirrors();
+            for (t, tri) in mesh.triangles.iter().enumerate() {
+                let mat = mesh.triangle_material[t] as usize;
+                let edges = borders[inst.mesh as usize][t] as u32;
+                let mut corners = [0usize, 1, 2];
+                if mirrored {
+                    corners = [0, 2, 1];
+                }
+                // The corner index stays the source triangle's, so the edge
+                // mask holds whatever the drawing order.
+                for &c in &corners {
+                    let v = tri[c] as usize;
+                    let p = m.transform_point3(mesh.positions[v]);
+                    lo = lo.min(p);
+                    hi = hi.max(p);
+                    let n = (nm * mesh.normals[v]).normalize_or_zero();
+                    per_material[mat].push(Vertex {
+                        position: p.to_array(),
+                        normal: n.to_array(),
+                        uv0: mesh.uv0[v].to_array(),
+                        uv1: mesh.uv1.as_ref().map_or([0.0; 2], |u| u[v].to_array()),
+                        corner_edges: c as u32 | (edges << 2),
+                    });
+                }
+            }
+        }
+        let mut vertices = Vec::new();
+        let mut batches = Vec::new();
+        for (material, vs) in per_material.into_iter().enumerate() {
+            if vs.is_empty() {
+                continue;
+            }
+            let start = vertices.len() as u32;
+            vertices.extend(vs);
+            batches.push(Batch {
+                material,
+                vertices: start..vertices.len() as u32,
+            });
+        }
+        if vertices.is_empty() {
+            lo = Vec3::splat(-1.0);
+            hi = Vec3::splat(1.0);
+        }
+        Model {
+            scene,
+            vertices,
+            batches,
+            materials,
+            lightmaps,
+            bounds: (lo, hi),
+        }
+    }
+}

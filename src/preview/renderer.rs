@@ -1,0 +1,553 @@
+//! The one render path: [`Renderer::render`] draws the model into any
+//! colour target view (the window's surface texture or an offscreen
+//! texture), so the window and `--headless` produce the same pixels.
+
+use super::camera::Camera;
+use super::gpu::{self, Globals, Vertex};
+use super::model::Model;
+use super::Settings;
+use crate::scene::Wrap;
+use wgpu::util::DeviceExt as _;
+
+/// Depth buffer format (reverse-Z: cleared to 0, `Greater` passes).
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+struct DrawBatch {
+    vertices: std::ops::Range<u32>,
+    material: usize,
+}
+
+/// GPU resources of a loaded model and the pipeline that draws it.
+pub struct Renderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    format: wgpu::TextureFormat,
+    /// [back-face culled, double-sided].
+    pipelines: [wgpu::RenderPipeline; 2],
+    globals: wgpu::Buffer,
+    globals_group: wgpu::BindGroup,
+    vertices: Option<wgpu::Buffer>,
+    batches: Vec<DrawBatch>,
+    material_groups: Vec<wgpu::BindGroup>,
+    double_sided: Vec<bool>,
+    depth: Option<(wgpu::TextureView, u32, u32)>,
+    size: (u32, u32),
+    /// The camera the next frame is drawn from.
+    pub camera: Camera,
+    /// Display settings of the next frame.
+    pub settings: Settings,
+}
+
+fn address_mode(w: Wrap) -> wgpu::AddressMode {
+    match w {
+        Wrap::Repeat => wgpu::AddressMode::Repeat,
+        Wrap::Clamp => wgpu::AddressMode::ClampToEdge,
+        Wrap::Mirror => wgpu::AddressMode::MirrorRepeat,
+    }
+}
+
+fn srgb_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    label: &str,
+    width: u32,
+    height: u32,
+    rgba: &[u8],
+) -> wgpu::TextureView {
+    let size = wgpu::Extent3d {
+        width,
+        height,
+        depth_or_array_layers: 1,
+    };
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture: &texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        rgba,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(4 * width),
+            rows_per_image: Some(height),
+        },
+        size,
+    );
+    texture.create_view(&wgpu::TextureViewDescriptor::default())
+}
+
+fn sampler(device: &wgpu::Device, s: Wrap, t: Wrap) -> wgpu::Sampler {
+    device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("sampler"),
+        address_mode_u: address_mode(s),
+        address_mode_v: address_mode(t),
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        ..Default::default()
+    })
+}
+
+impl Renderer {
+    /// Uploads `model` and builds the pipeline for colour targets of `format`
+    /// (an sRGB format: the shader writes linear values).
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        format: wgpu::TextureFormat,
+        model: &Model,
+        camera: Camera,
+        settings: Settings,
+    ) -> Renderer {
+        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("preview.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(gpu::SHADER.into()),
+        });
+        let uniform = |binding, visibility| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let texture = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        };
+        let sampler_entry = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+            count: None,
+        };
+        let globals_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("globals"),
+            entries: &[uniform(
+                0,
+                wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+            )],
+        });
+        let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("material"),
+            entries: &[
+                uniform(0, wgpu::ShaderStages::FRAGMENT),
+                texture(1),
+                sampler_entry(2),
+                texture(3),
+                sampler_entry(4),
+                texture(5),
+                sampler_entry(6),
+            ],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("preview"),
+            bind_group_layouts: &[Some(&globals_layout), Some(&material_layout)],
+            immediate_size: 0,
+        });
+        let pipeline = |cull_mode| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("preview"),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: &shader,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(Vertex::layout())],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Greater),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &shader,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let pipelines = [pipeline(Some(wgpu::Face::Back)), pipeline(None)];
+
+        let globals = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("globals"),
+            size: std::mem::size_of::<Globals>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let globals_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("globals"),
+            layout: &globals_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: globals.as_entire_binding(),
+            }],
+        });
+
+        // Textures: the scene's (sRGB base colour / emissive), the lightmap
+        // pages (sRGB PNG), and a white texel for "none".
+        let white = srgb_texture(device, queue, "white", 1, 1, &[255; 4]);
+        let clamp = sampler(device, Wrap::Clamp, Wrap::Clamp);
+        let scene_textures: Vec<(wgpu::TextureView, wgpu::Sampler)> = model
+            .scene
+            .textures
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let view = srgb_texture(
+                    device,
+                    queue,
+                    &format!("texture{i}"),
+                    t.width,
+                    t.height,
+                    bytemuck::cast_slice(&t.rgba),
+                );
+                (view, sampler(device, t.wrap_s, t.wrap_t))
+            })
+            .collect();
+        let lightmaps: Vec<wgpu::TextureView> = model
+            .lightmaps
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                srgb_texture(
+                    device,
+                    queue,
+                    &format!("lightmap{i}"),
+                    l.width,
+                    l.height,
+                    &l.rgba,
+                )
+            })
+            .collect();
+        let material_groups = model
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(&format!("material{i}")),
+                    contents: bytemuck::bytes_of(&m.gpu),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+                let tex = |t: Option<u32>| {
+                    t.and_then(|t| scene_textures.get(t as usize))
+                        .map_or((&white, &clamp), |(v, s)| (v, s))
+                };
+                let (base_view, base_sampler) = tex(m.base_texture);
+                let (emissive_view, emissive_sampler) = tex(m.emissive_texture);
+                let lightmap_view = m.lightmap.and_then(|p| lightmaps.get(p)).unwrap_or(&white);
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(&format!("material{i}")),
+                    layout: &material_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: buffer.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: wgpu::BindingResource::TextureView(base_view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: wgpu::BindingResource::Sampler(base_sampler),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: wgpu::BindingResource::TextureView(emissive_view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: wgpu::BindingResource::Sampler(emissive_sampler),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 5,
+                            resource: wgpu::BindingResource::TextureView(lightmap_view),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 6,
+                            resource: wgpu::BindingResource::Sampler(&clamp),
+                        },
+                    ],
+                })
+            })
+            .collect();
+        let vertices = (!model.vertices.is_empty()).then(|| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vertices"),
+                contents: bytemuck::cast_slice(&model.vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            })
+        });
+        Renderer {
+            device: device.clone(),
+            queue: queue.clone(),
+            format,
+            pipelines,
+            globals,
+            globals_group,
+            vertices,
+            batches: model
+                .batches
+                .iter()
+                .map(|b| DrawBatch {
+                    vertices: b.vertices.clone(),
+                    material: b.material,
+                })
+                .collect(),
+            material_groups,
+            double_sided: model.materials.iter().map(|m| m.double_sided).collect(),
+            depth: None,
+            size: (1, 1),
+            camera,
+            settings,
+        }
+    }
+
+    /// The colour format the pipeline was built for.
+    pub fn format(&self) -> wgpu::TextureFormat {
+        self.format
+    }
+
+    /// The size of the targets the next frames are drawn into.
+    pub fn resize(&mut self, width: u32, height: u32) {
+        self.size = (width.max(1), height.max(1));
+    }
+
+    /// The current target size.
+    pub fn size(&self) -> (u32, u32) {
+        self.size
+    }
+
+    fn depth_view(&mut self) -> wgpu::TextureView {
+        let (w, h) = self.size;
+        match &self.depth {
+            Some((view, dw, dh)) if (*dw, *dh) == (w, h) => view.clone(),
+            _ => {
+                let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some("depth"),
+                    size: wgpu::Extent3d {
+                        width: w,
+                        height: h,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: DEPTH_FORMAT,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                    view_formats: &[],
+                });
+                let view = texture.create_view(&Default::default());
+                self.depth = Some((view.clone(), w, h));
+                view
+            }
+        }
+    }
+
+    /// Draws one frame from [`Self::camera`] with [`Self::settings`] into
+    /// `target` (of [`Self::format`] and [`Self::size`]) and submits it.
+    pub fn render(&mut self, target: &wgpu::TextureView) -> wgpu::SubmissionIndex {
+        let (w, h) = self.size;
+        let s = &self.settings;
+        let globals = Globals {
+            view_proj: self
+                .camera
+                .view_proj(w as f32 / h as f32)
+                .to_cols_array_2d(),
+            camera_pos: self.camera.eye.extend(1.0).to_array(),
+            exposure: 2f32.powf(s.exposure_ev),
+            view_mode: s.view as u32,
+            bicubic: s.bicubic as u32,
+            tone_map: s.tone_map as u32,
+            viewport: [w as f32, h as f32],
+            _pad: [0.0; 2],
+        };
+        self.queue
+            .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
+        let depth = self.depth_view();
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame"),
+            });
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("preview"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: 0.02,
+                            g: 0.02,
+                            b: 0.025,
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(0.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            if let Some(vertices) = &self.vertices {
+                pass.set_vertex_buffer(0, vertices.slice(..));
+                pass.set_bind_group(0, &self.globals_group, &[]);
+                for b in &self.batches {
+                    let pipeline = &self.pipelines[self.double_sided[b.material] as usize];
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(1, &self.material_groups[b.material], &[]);
+                    pass.draw(b.vertices.clone(), 0..1);
+                }
+            }
+        }
+        self.queue.submit([encoder.finish()])
+    }
+
+    /// Renders one frame offscreen at the current size and reads it back as
+    /// tightly packed RGBA8 (sRGB-encoded) rows.
+    pub fn render_to_image(&mut self) -> anyhow::Result<Vec<u8>> {
+        let (w, h) = self.size;
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("offscreen"),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: self.format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        self.render(&texture.create_view(&Default::default()));
+        read_back(&self.device, &self.queue, &texture)
+    }
+
+    /// The device.
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    /// The queue.
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+}
+
+/// Copies `texture` (RGBA8 or BGRA8, sRGB or not) to the CPU as RGBA8 rows.
+pub fn read_back(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    texture: &wgpu::Texture,
+) -> anyhow::Result<Vec<u8>> {
+    let (w, h) = (texture.width(), texture.height());
+    let row = 4 * w;
+    let padded =
+        row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size: padded as u64 * h as u64,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+        label: Some("readback"),
+    });
+    encoder.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: Some(h),
+            },
+        },
+        texture.size(),
+    );
+    queue.submit([encoder.finish()]);
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| anyhow::anyhow!("GPU wait failed: {e}"))?;
+    rx.recv()?
+        .map_err(|e| anyhow::anyhow!("cannot map the readback buffer: {e}"))?;
+    let bgra = matches!(
+        texture.format(),
+        wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
+    );
+    let mut out = Vec::with_capacity((row * h) as usize);
+    {
+        let data = buffer
+            .slice(..)
+            .get_mapped_range()
+            .map_err(|e| anyhow::anyhow!("cannot read the readback buffer: {e}"))?;
+        for y in 0..h {
+            let start = (y * padded) as usize;
+            out.extend_from_slice(&data[start..start + row as usize]);
+        }
+    }
+    buffer.unmap();
+    if bgra {
+        for px in out.chunks_exact_mut(4) {
+            px.swap(0, 2);
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,362 @@
+//! The wgpu preview (`radbake preview`, feature `preview`): WGSL/Rust layout
+//! agreement, the model builder, and headless renders of the baked Cornell
+//! box against a golden image.
+//!
+//! GPU tests need an adapter; Mesa's lavapipe (software Vulkan) is enough
+//! (`.ci/run` installs it). Where none exists at all they print why and
+//! return. The golden image is regenerated only with `RADBAKE_UPDATE_GOLDEN=1`;
+//! a missing golden fails.
+#![cfg(feature = "preview")]
+
+mod common;
+
+use common::{scene_path, temp_dir};
+use glam::{Vec2, Vec3};
+use radbake::preview::{gpu, model};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// Golden comparison thresholds, in 8-bit sRGB levels (0–255), of the
+/// per-pixel largest channel difference: the mean over the image, and the
+/// 99th percentile (which lets a few edge pixels differ between
+/// rasterizers, but not a region).
+const MAX_MEAN_ABS_ERROR: f64 = 1.5;
+const MAX_P99_ERROR: u8 = 24;
+const GOLDEN_SIZE: &str = "320x240";
+
+fn golden_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/cornell_preview.png")
+}
+
+/// The Cornell box baked once (low settings) for every test here.
+fn baked_cornell() -> &'static Path {
+    static BAKED: OnceLock<PathBuf> = OnceLock::new();
+    BAKED.get_or_init(|| {
+        let dir = temp_dir("preview-bake");
+        let out = Command::new(env!("CARGO_BIN_EXE_radbake"))
+            .args(["bake", "-q", "--texels-per-meter", "40", "--out"])
+            .arg(&dir)
+            .arg(scene_path("cornell_box.gltf"))
+            .output()
+            .expect("run radbake bake");
+        assert!(
+            out.status.success(),
+            "bake failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let glb = dir.join("cornell_box.baked.glb");
+        assert!(glb.exists());
+        glb
+    })
+}
+
+/// Runs `radbake preview <glb> --headless --out <png> <extra>`; None (after
+/// printing why) when the machine has no graphics adapter at all.
+fn headless(glb: &Path, png: &Path, extra: &[&str]) -> Option<String> {
+    let out = Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .arg("preview")
+        .arg(glb)
+        .args(["--headless", "--out"])
+        .arg(png)
+        .args(extra)
+        .output()
+        .expect("run radbake preview");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() && stderr.contains("no graphics adapter") {
+        eprintln!("SKIPPED (no GPU or software adapter on this machine): {stderr}");
+        return None;
+    }
+    assert!(out.status.success(), "preview failed: {stderr}");
+    assert!(png.exists(), "{} was not written", png.display());
+    Some(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+fn load_rgba(path: &Path) -> image::RgbaImage {
+    image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgba8()
+}
+
+#[test]
+fn wgsl_struct_layouts_match_rust() {
+    let module = naga::front::wgsl::parse_str(gpu::SHADER).expect("WGSL parses");
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(&module)
+    .expect("WGSL validates");
+    let find = |name: &str| {
+        module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("WGSL struct {name} not found"))
+            .1
+            .inner
+            .clone()
+    };
+    for (name, size, fields) in gpu::layouts() {
+        let naga::TypeInner::Struct { members, span } = find(name) else {
+            panic!("{name} is not a struct");
+        };
+        assert_eq!(span as usize, size, "{name}: WGSL size {span}, Rust {size}");
+        let wgsl: Vec<(String, usize)> = members
+            .iter()
+            .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
+            .collect();
+        let rust: Vec<(String, usize)> = fields.iter().map(|(n, o)| (n.to_string(), *o)).collect();
+        assert_eq!(wgsl, rust, "{name}: WGSL vs Rust (field, offset)");
+    }
+    // The vertex: shader locations 0.. in field order, same sizes as the
+    // buffer layout's formats, at the Rust field offsets.
+    let naga::TypeInner::Struct { members, .. } = find("VertexIn") else {
+        panic!("VertexIn is not a struct");
+    };
+    let offsets = gpu::vertex_offsets();
+    assert_eq!(members.len(), gpu::Vertex::ATTRIBUTES.len());
+    for (i, (m, attr)) in members.iter().zip(gpu::Vertex::ATTRIBUTES).enumerate() {
+        assert!(
+            matches!(m.binding, Some(naga::Binding::Location { location, .. }) if location == i as u32),
+            "VertexIn member {i} is not at location {i}"
+        );
+        assert_eq!(attr.shader_location, i as u32);
+        assert_eq!(attr.offset as usize, offsets[i], "attribute {i} offset");
+        let size = module.types[m.ty].inner.size(module.to_ctx()) as u64;
+        assert_eq!(size, attr.format.size(), "attribute {i} size");
+    }
+    assert_eq!(
+        std::mem::size_of::<gpu::Vertex>(),
+        offsets[4] + 4,
+        "Vertex has no tail padding"
+    );
+}
+
+#[test]
+fn chart_borders_are_uv_seams_and_boundaries() {
+    // A unit quad as two triangles sharing the diagonal 0–2.
+    let p = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+    ];
+    let uv: Vec<Vec2> = p.iter().map(|v| v.truncate()).collect();
+    let tris = [[0, 1, 2], [0, 2, 3]];
+    // Same UVs on both sides of the diagonal: only the outer edges border.
+    // Edge k joins corners k and k + 1: the diagonal is edge 2 of triangle 0
+    // (2→0) and edge 0 of triangle 1 (0→2).
+    assert_eq!(
+        model::chart_border_edges(&p, &uv, &tris),
+        vec![0b011, 0b110]
+    );
+    // Split the diagonal into a seam (vertices 4, 5 duplicate 0, 2 with other UVs).
+    let mut p2 = p.to_vec();
+    p2.extend([p[0], p[2]]);
+    let mut uv2 = uv.clone();
+    uv2.extend([Vec2::new(5.0, 5.0), Vec2::new(6.0, 6.0)]);
+    let tris2 = [[0, 1, 2], [4, 5, 3]];
+    assert_eq!(
+        model::chart_border_edges(&p2, &uv2, &tris2),
+        vec![0b111, 0b111]
+    );
+}
+
+#[test]
+fn moz_lightmap_is_parsed_per_material() {
+    let json = serde_json::json!({"materials": [
+        {"name": "plain"},
+        {"extensions": {"MOZ_lightmap": {"index": 3, "texCoord": 1, "intensity": 6.0,
+            "extensions": {"KHR_texture_transform": {"offset": [0.25, 0.5], "scale": [0.125, 0.25]}}}}},
+        {"extensions": {"MOZ_lightmap": {"index": 3, "intensity": 2.0}}},
+        {"extensions": {"MOZ_lightmap": {"index": 7, "intensity": 1.0}}}
+    ]});
+    let (per_material, pages) = model::parse_moz_lightmaps(&json).unwrap();
+    assert_eq!(pages, vec![3, 7]);
+    assert_eq!(per_material[0], None);
+    let a = per_material[1].unwrap();
+    assert_eq!((a.page, a.intensity), (0, 6.0));
+    assert_eq!(
+        (a.offset, a.scale),
+        (Vec2::new(0.25, 0.5), Vec2::new(0.125, 0.25))
+    );
+    let b = per_material[2].unwrap();
+    assert_eq!((b.page, b.offset, b.scale), (0, Vec2::ZERO, Vec2::ONE));
+    assert_eq!(per_material[3].unwrap().page, 1);
+}
+
+#[test]
+fn baked_cornell_model_has_lightmaps_on_every_surface() {
+    let m = model::Model::load(baked_cornell()).unwrap();
+    assert_eq!(m.lightmaps.len(), 1);
+    assert!(!m.batches.is_empty());
+    for b in &m.batches {
+        let mat = &m.materials[b.material];
+        assert_eq!(
+            mat.lightmap,
+            Some(0),
+            "batch material {} has no lightmap",
+            b.material
+        );
+        assert!(mat.gpu.lightmap_scale > 0.0);
+        let [_, _, w, h] = mat.gpu.lightmap_rect;
+        assert!(w > 0.0 && h > 0.0 && w <= 1.0 && h <= 1.0);
+    }
+    assert_eq!(m.vertices.len() % 3, 0);
+    // Every triangle has some chart border (each wall is its own chart).
+    assert!(m.vertices.iter().any(|v| v.corner_edges >> 2 != 0));
+}
+
+#[test]
+fn headless_cornell_matches_golden() {
+    let glb = baked_cornell();
+    let dir = temp_dir("preview-golden");
+    let png = dir.join("cornell_preview.png");
+    let Some(_) = headless(glb, &png, &["--size", GOLDEN_SIZE]) else {
+        return;
+    };
+    let golden = golden_path();
+    if std::env::var_os("RADBAKE_UPDATE_GOLDEN").is_some_and(|v| v == "1") {
+        std::fs::copy(&png, &golden).unwrap();
+        eprintln!("updated {}", golden.display());
+        return;
+    }
+    assert!(
+        golden.exists(),
+        "golden image {} is missing: generate it with RADBAKE_UPDATE_GOLDEN=1 cargo test --release --test preview, look at it, and commit it",
+        golden.display()
+    );
+    let (a, b) = (load_rgba(&png), load_rgba(&golden));
+    assert_eq!(
+        a.dimensions(),
+        b.dimensions(),
+        "image size differs from the golden"
+    );
+    let mut errors: Vec<u8> = a
+        .pixels()
+        .zip(b.pixels())
+        .map(|(p, q)| (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap())
+        .collect();
+    let mean = errors.iter().map(|&e| e as f64).sum::<f64>() / errors.len() as f64;
+    errors.sort_unstable();
+    let p99 = errors[(errors.len() * 99 / 100).min(errors.len() - 1)];
+    eprintln!("golden: mean abs error {mean:.3}, p99 {p99} (limits {MAX_MEAN_ABS_ERROR}, {MAX_P99_ERROR}); render at {}", png.display());
+    assert!(
+        mean <= MAX_MEAN_ABS_ERROR && p99 <= MAX_P99_ERROR,
+        "render differs from {}: mean abs error {mean:.3} (limit {MAX_MEAN_ABS_ERROR}), p99 {p99} (limit {MAX_P99_ERROR}); the render is {}",
+        golden.display(),
+        png.display()
+    );
+    // The golden itself is the lit room, not a blank frame: the lamp is
+    // white, the walls left and right of the centre are red and green, the
+    // back wall is lit.
+    let (w, h) = b.dimensions();
+    let mean = |x0: f32, x1: f32, y0: f32, y1: f32| {
+        let (mut sum, mut n) = ([0f64; 3], 0f64);
+        for y in (y0 * h as f32) as u32..(y1 * h as f32) as u32 {
+            for x in (x0 * w as f32) as u32..(x1 * w as f32) as u32 {
+                let p = b.get_pixel(x, y);
+                (0..3).for_each(|c| sum[c] += p[c] as f64);
+                n += 1.0;
+            }
+        }
+        sum.map(|s| s / n)
+    };
+    let lamp = b
+        .pixels()
+        .filter(|p| p[0] > 240 && p[1] > 240 && p[2] > 240)
+        .count();
+    assert!(lamp > 20, "no white lamp ({lamp} pixels)");
+    let left = mean(0.15, 0.25, 0.3, 0.6);
+    let right = mean(0.75, 0.85, 0.3, 0.6);
+    let back = mean(0.45, 0.55, 0.25, 0.35);
+    eprintln!("left {left:?} right {right:?} back {back:?}");
+    assert!(
+        left[0] > 20.0 && left[0] > 3.0 * left[1],
+        "left wall {left:?} is not red"
+    );
+    assert!(
+        right[1] > 20.0 && right[1] > 1.5 * right[0],
+        "right wall {right:?} is not green"
+    );
+    assert!(
+        back[0] > 50.0 && back[1] > 40.0,
+        "back wall {back:?} is dark"
+    );
+}
+
+#[test]
+fn headless_debug_views_and_timing() {
+    let glb = baked_cornell();
+    let dir = temp_dir("preview-views");
+    let lit = dir.join("lit.png");
+    let Some(stdout) = headless(glb, &lit, &["--size", "160x120", "--frames", "5"]) else {
+        return;
+    };
+    assert!(stdout.contains("ms/frame"), "no timing in: {stdout}");
+    let lit = load_rgba(&lit);
+    let mut renders = Vec::new();
+    for view in ["lightmap", "albedo", "checker", "charts"] {
+        let png = dir.join(format!("{view}.png"));
+        headless(glb, &png, &["--size", "160x120", "--view", view]).unwrap();
+        renders.push((view, load_rgba(&png)));
+    }
+    let differs = |a: &image::RgbaImage, b: &image::RgbaImage| {
+        a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count() > 100
+    };
+    for (view, img) in &renders {
+        assert!(differs(&lit, img), "view {view} looks like lit");
+    }
+    // Chart borders are drawn in red (1, 0.02, 0).
+    let charts = &renders[3].1;
+    let red = charts
+        .pixels()
+        .filter(|p| p[0] > 240 && p[1] < 120 && p[2] < 80)
+        .count();
+    assert!(red > 50, "chart view has only {red} border pixels");
+    // Bicubic filtering changes the image a little, a camera moves it a lot.
+    let cubic = dir.join("cubic.png");
+    headless(glb, &cubic, &["--size", "160x120", "--bicubic"]).unwrap();
+    assert!(differs(&lit, &load_rgba(&cubic)));
+    let moved = dir.join("moved.png");
+    headless(
+        glb,
+        &moved,
+        &[
+            "--size",
+            "160x120",
+            "--look-from",
+            "0.278,0.5,-0.5",
+            "--look-at",
+            "0.278,0.2,0.3",
+        ],
+    )
+    .unwrap();
+    assert!(differs(&lit, &load_rgba(&moved)));
+    // The named glTF camera is the default one.
+    let named = dir.join("named.png");
+    headless(glb, &named, &["--size", "160x120", "--camera", "camera"]).unwrap();
+    assert_eq!(lit.as_raw(), load_rgba(&named).as_raw());
+}
+
+#[test]
+fn unknown_camera_is_a_clear_error() {
+    let glb = baked_cornell();
+    let png = temp_dir("preview-badcam").join("x.png");
+    let out = Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .arg("preview")
+        .arg(glb)
+        .args(["--headless", "--out"])
+        .arg(&png)
+        .args(["--camera", "nope"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("no camera named `nope`") && stderr.contains("camera"),
+        "{stderr}"
+    );
+    assert!(!png.exists());
+}
