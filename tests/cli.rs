@@ -328,6 +328,33 @@ fn bad_geometry_is_named() {
         b.write(&path);
         assert_rejected(&path, "meshes[0].primitives[0].attributes.POSITION");
     }
+    // NaN normals.
+    let mut b = GltfBuilder::default();
+    let pos = b.vec3(&[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]);
+    let nrm = b.vec3(&[[0.0, 1.0, 0.0], [f32::NAN, 1.0, 0.0], [0.0, 1.0, 0.0]]);
+    let mut doc = b.json();
+    doc["meshes"] = json!([{"primitives": [{"attributes": {"POSITION": pos, "NORMAL": nrm}}]}]);
+    doc["nodes"] = json!([{"mesh": 0}]);
+    doc["scenes"] = json!([{"nodes": [0]}]);
+    assert_rejected(
+        &write_json(&dir, "nan_normal.gltf", &doc),
+        "meshes[0].primitives[0].attributes.NORMAL",
+    );
+    // A byte stride that walks past the view.
+    let mut doc = plates().json();
+    doc["bufferViews"][0]["byteStride"] = json!(64);
+    assert_rejected(&write_json(&dir, "stride.gltf", &doc), "accessors[0]");
+    // An accessor offset past the view.
+    let mut doc = plates().json();
+    doc["accessors"][0]["byteOffset"] = json!(40);
+    assert_rejected(&write_json(&dir, "offset.gltf", &doc), "accessors[0]");
+    // A POSITION accessor that does not exist (made the gltf crate panic; found by fuzzing).
+    let mut doc = plates().json();
+    doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(99);
+    assert_rejected(
+        &write_json(&dir, "position.gltf", &doc),
+        "meshes[0].primitives[0].attributes.POSITION",
+    );
     // An accessor that runs past its buffer view.
     let mut doc = plates().json();
     doc["accessors"][0]["count"] = json!(1000);
@@ -346,6 +373,13 @@ fn bad_geometry_is_named() {
     assert_rejected(
         &write_json(&dir, "draco.gltf", &doc),
         "KHR_draco_mesh_compression",
+    );
+    let mut doc = plates().json();
+    doc["extensionsUsed"] = json!(["EXT_meshopt_compression"]);
+    doc["extensionsRequired"] = json!(["EXT_meshopt_compression"]);
+    assert_rejected(
+        &write_json(&dir, "meshopt.gltf", &doc),
+        "EXT_meshopt_compression",
     );
 }
 
@@ -369,6 +403,16 @@ fn huge_image_header_is_refused_before_decoding() {
     doc["textures"] = json!([{"source": 0}]);
     doc["materials"][1]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
     assert_rejected(&write_json(&dir, "huge.gltf", &doc), "images[0]");
+    // A JPEG whose frame header claims 65000 × 65000 pixels.
+    let mut jpg = vec![0xff, 0xd8, 0xff, 0xc0, 0x00, 0x11, 0x08];
+    jpg.extend_from_slice(&65000u16.to_be_bytes());
+    jpg.extend_from_slice(&65000u16.to_be_bytes());
+    jpg.extend_from_slice(&[
+        0x03, 0x01, 0x22, 0x00, 0x02, 0x11, 0x01, 0x03, 0x11, 0x01, 0xff, 0xd9,
+    ]);
+    std::fs::write(dir.join("huge.jpg"), &jpg).unwrap();
+    doc["images"] = json!([{"uri": "huge.jpg"}]);
+    assert_rejected(&write_json(&dir, "huge_jpg.gltf", &doc), "images[0]");
 }
 
 /// CRC-32 (ISO 3309) for the PNG chunk above.

@@ -128,26 +128,29 @@ fn ctrl_c_stops_within_a_second() {
     }
 }
 
-/// A scene whose estimated bake memory exceeds `--max-memory` is refused
-/// with the estimate before its geometry is read.
+/// A mesh of 10⁷ instanced triangles (10⁴ triangles drawn by 10³ nodes)
+/// with a 1 GB memory limit is refused with an estimate before its geometry
+/// is read, instead of running out of memory.
 #[test]
 fn memory_limit_refuses_with_an_estimate() {
     let dir = temp_dir("memlimit");
-    // One triangle mesh drawn by 10⁵ nodes: 10⁵ instanced triangles ~ 100 MB estimated.
     let mut b = GltfBuilder::default();
-    let m = b.mesh(
-        &[[0.0; 3], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
-        &[0, 1, 2],
-        None,
-    );
-    let mut doc = b.json();
-    let nodes: Vec<serde_json::Value> = (0..100_000)
-        .map(|i| serde_json::json!({"mesh": m, "translation": [i as f32 * 2.0, 0.0, 0.0]}))
+    let n = 10_000u32;
+    let p: Vec<[f32; 3]> = (0..n + 2)
+        .map(|i| [i as f32 * 0.01, (i % 2) as f32 * 0.01, 0.0])
         .collect();
-    doc["nodes"] = serde_json::Value::Array(nodes);
-    doc["scenes"][0]["nodes"] = serde_json::json!((0..100_000).collect::<Vec<_>>());
+    let idx: Vec<u32> = (0..n).flat_map(|i| [i, i + 1, i + 2]).collect();
+    let m = b.mesh(&p, &idx, None);
+    let mut doc = b.json();
+    doc["nodes"] = serde_json::Value::Array(
+        (0..1000)
+            .map(|i| serde_json::json!({"mesh": m, "translation": [0.0, i as f32, 0.0]}))
+            .collect(),
+    );
+    doc["scenes"][0]["nodes"] = serde_json::json!((0..1000).collect::<Vec<_>>());
     let path = dir.join("many.gltf");
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let t = Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_radbake"))
         .args([
             "bake",
@@ -155,13 +158,23 @@ fn memory_limit_refuses_with_an_estimate() {
             "--out",
             dir.join("out").to_str().unwrap(),
             "--max-memory",
-            "50",
+            "1024",
         ])
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(err.contains("estimated") && err.contains("50 MB"), "{err}");
+    assert!(
+        err.contains("estimated")
+            && err.contains("10000000 instanced triangles")
+            && err.contains("1024 MB"),
+        "{err}"
+    );
+    assert!(
+        t.elapsed() < Duration::from_secs(10),
+        "refusal took {:?}",
+        t.elapsed()
+    );
 }
 
 /// A valid little scene as .gltf text and as .glb bytes.

@@ -187,6 +187,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             message: "the file is empty".into(),
         });
     }
+    precheck_positions(&ctx, &bytes)?;
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| Error::Parse {
         path: path.to_path_buf(),
         message: if bytes.starts_with(b"glTF") {
@@ -375,6 +376,42 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
 }
 
 /// Every buffer's bytes, and the external files read.
+/// The `gltf` crate's validation indexes `accessors` with each primitive's
+/// POSITION index unchecked (found by fuzzing): check those indices first.
+/// Anything else malformed is left to the crate's validation.
+fn precheck_positions(ctx: &Ctx, bytes: &[u8]) -> Result<()> {
+    let json: std::borrow::Cow<[u8]> = if bytes.starts_with(b"glTF") {
+        match gltf::Glb::from_slice(bytes) {
+            Ok(g) => g.json,
+            Err(_) => return Ok(()), // reported by the full parse
+        }
+    } else {
+        std::borrow::Cow::Borrowed(bytes)
+    };
+    let Ok(doc) = serde_json::from_slice::<serde_json::Value>(&json) else {
+        return Ok(()); // reported by the full parse
+    };
+    let accessors = doc["accessors"].as_array().map_or(0, Vec::len);
+    for (m, mesh) in doc["meshes"].as_array().into_iter().flatten().enumerate() {
+        for (p, prim) in mesh["primitives"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .enumerate()
+        {
+            if let Some(v) = prim["attributes"].get("POSITION") {
+                if v.as_u64().is_none_or(|i| i as usize >= accessors) {
+                    return Err(ctx.invalid(
+                        format!("meshes[{m}].primitives[{p}].attributes.POSITION"),
+                        format!("accessor {v} does not exist ({accessors} accessors)"),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Bake memory per instanced triangle (world geometry, BVH, atlas, texels
 /// and patches at ordinary densities), measured on the shipped scenes with
 /// margin.
