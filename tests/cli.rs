@@ -479,3 +479,14 @@ fn config_file_is_read_and_unknown_keys_rejected() {
     assert_eq!(r.code, 1);
     assert!(r.stderr.contains("patch_texels"), "{}", r.stderr);
 }
+
+/// Regression for a fuzzing find: a GLB whose JSON (with invalid UTF-8 in it)
+/// loses its `accessors` key made the gltf crate's validation panic.
+#[test]
+fn fuzz_regressions() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/fuzz_position_index.glb");
+    let dir = temp_dir("cli-fuzz");
+    let copy = dir.join("case.glb");
+    std::fs::copy(&path, &copy).unwrap();
+    assert_rejected(&copy, "meshes[0].primitives[0].attributes.POSITION");
+}

@@ -187,15 +187,21 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             message: "the file is empty".into(),
         });
     }
-    precheck_positions(&ctx, &bytes)?;
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| Error::Parse {
+    let parse_error = |e: gltf::Error| Error::Parse {
         path: path.to_path_buf(),
         message: if bytes.starts_with(b"glTF") {
             format!("malformed or truncated GLB ({} bytes): {e}", bytes.len())
         } else {
             e.to_string()
         },
-    })?;
+    };
+    // Parse, check what the crate's validation would index unchecked, then
+    // validate.
+    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(parse_error)?;
+    precheck_positions(&ctx, raw.document.as_json())?;
+    let blob = raw.blob;
+    let document = gltf::Document::from_json(raw.document.into_json()).map_err(parse_error)?;
+    let gltf = gltf::Gltf { document, blob };
     let (buffers, mut files) = load_buffers(&ctx, &gltf)?;
     check_accessors(&ctx, &gltf.document, &buffers)?;
     if let Some(limit) = options.max_memory {
@@ -377,33 +383,23 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
 
 /// Every buffer's bytes, and the external files read.
 /// The `gltf` crate's validation indexes `accessors` with each primitive's
-/// POSITION index unchecked (found by fuzzing): check those indices first.
-/// Anything else malformed is left to the crate's validation.
-fn precheck_positions(ctx: &Ctx, bytes: &[u8]) -> Result<()> {
-    let json: std::borrow::Cow<[u8]> = if bytes.starts_with(b"glTF") {
-        match gltf::Glb::from_slice(bytes) {
-            Ok(g) => g.json,
-            Err(_) => return Ok(()), // reported by the full parse
-        }
-    } else {
-        std::borrow::Cow::Borrowed(bytes)
-    };
-    let Ok(doc) = serde_json::from_slice::<serde_json::Value>(&json) else {
-        return Ok(()); // reported by the full parse
-    };
-    let accessors = doc["accessors"].as_array().map_or(0, Vec::len);
-    for (m, mesh) in doc["meshes"].as_array().into_iter().flatten().enumerate() {
-        for (p, prim) in mesh["primitives"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .enumerate()
-        {
-            if let Some(v) = prim["attributes"].get("POSITION") {
-                if v.as_u64().is_none_or(|i| i as usize >= accessors) {
+/// POSITION index unchecked (found by fuzzing): check those indices on the
+/// parsed but not yet validated document. Everything else is left to the
+/// crate's validation.
+fn precheck_positions(ctx: &Ctx, root: &gltf::json::Root) -> Result<()> {
+    let accessors = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let position =
+                gltf::json::validation::Checked::Valid(gltf::json::mesh::Semantic::Positions);
+            if let Some(index) = prim.attributes.get(&position) {
+                if index.value() >= accessors {
                     return Err(ctx.invalid(
                         format!("meshes[{m}].primitives[{p}].attributes.POSITION"),
-                        format!("accessor {v} does not exist ({accessors} accessors)"),
+                        format!(
+                            "accessor {} does not exist ({accessors} accessors)",
+                            index.value()
+                        ),
                     ));
                 }
             }
