@@ -235,7 +235,11 @@ fn run_mutant(bytes: &[u8], ext: &str) {
 
 proptest! {
     // `PROPTEST_CASES` sets the run length (CI: the default below).
-    #![proptest_config(ProptestConfig { cases: 48, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(48),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
 
     /// Random byte edits and truncations of a valid .glb.
     #[test]
