@@ -69,6 +69,40 @@ pub struct Atlas {
     pub warnings: Vec<String>,
 }
 
+/// Longest lightmap side any engine loads (and past which `uvunwrap`'s packer
+/// misbehaves): a triangle longer than this in texels cannot be packed.
+pub const MAX_CHART_TEXELS: f32 = 16384.0;
+
+/// Refuses a triangle whose longest edge, at its instance's scale and the
+/// texel density, is longer than [`MAX_CHART_TEXELS`] (a 2000 km sliver
+/// from a broken export, say), naming the mesh and triangle.
+fn check_chart_extent(scene: &Scene, scales: &[Vec<f32>], density: f32) -> Result<()> {
+    for (m, mesh) in scene.meshes.iter().enumerate() {
+        let Some(scale) = scales[m].iter().copied().reduce(f32::max) else {
+            continue;
+        };
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            let p = tri.map(|i| mesh.positions[i as usize]);
+            let edge = [p[1] - p[0], p[2] - p[1], p[0] - p[2]]
+                .iter()
+                .map(|e| e.length())
+                .fold(0.0f32, f32::max);
+            let texels = edge * scale * density;
+            if !(texels <= MAX_CHART_TEXELS) {
+                return Err(Error::Limit(format!(
+                    "meshes[{}].primitives[{}] (`{}`): a triangle with a {:.3e} m edge is {:.3e} texels long at {density} texels/m, over the {MAX_CHART_TEXELS}-texel lightmap limit",
+                    mesh.gltf_index,
+                    mesh.triangle_primitive.get(t).copied().unwrap_or(0),
+                    mesh.name,
+                    edge * scale,
+                    texels
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Unwraps every mesh of `scene` and packs every instance.
 ///
 /// # Errors
@@ -119,6 +153,8 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
         density = lowered;
     }
 
+    check_chart_extent(scene, &scales, density)?;
+
     let positions: Vec<Vec<[f32; 3]>> = scene
         .meshes
         .iter()
@@ -165,7 +201,20 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
         padding: config.padding,
         ..uvunwrap::Options::default()
     };
-    let out = uvunwrap::generate(&inputs, &options).map_err(|e| Error::Unwrap(e.to_string()))?;
+    // A safety net: `uvunwrap` has been seen to panic on geometry the checks
+    // above do not catch (found by fuzzing); turn that into an error.
+    let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        uvunwrap::generate(&inputs, &options)
+    }))
+    .map_err(|panic| {
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        Error::Unwrap(format!("the unwrapper failed on this geometry ({why})"))
+    })?
+    .map_err(|e| Error::Unwrap(e.to_string()))?;
 
     let mut instances = vec![
         InstanceRect {

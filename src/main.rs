@@ -443,7 +443,11 @@ fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
             hidden: args.quiet,
         }),
     };
-    let bake = radbake::bake(&scene, &config, progress.as_ref()).map_err(lib_err)?;
+    // Errors from the bake's stages name what is wrong but not the file.
+    let bake = radbake::bake(&scene, &config, progress.as_ref()).map_err(|e| {
+        let (code, message) = lib_err(e);
+        (code, format!("{}: {message}", args.scene.display()))
+    })?;
     let mut report = bake.report(&args.scene.display().to_string());
     report.stages.insert(0, import);
     let t = Instant::now();

@@ -489,4 +489,13 @@ fn fuzz_regressions() {
     let copy = dir.join("case.glb");
     std::fs::copy(&path, &copy).unwrap();
     assert_rejected(&copy, "meshes[0].primitives[0].attributes.POSITION");
+
+    // A flipped byte put a vertex 2,097 km away: uvunwrap's packer panicked
+    // on the resulting chart. Refused before unwrapping, naming the primitive.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/fuzz_uvunwrap_pack.glb");
+    let copy = dir.join("pack.glb");
+    std::fs::copy(&path, &copy).unwrap();
+    assert_rejected(&copy, "meshes[0].primitives[0]");
+    let r = bake(&copy, &dir.join("out"), &[]);
+    assert!(r.stderr.contains("texel lightmap limit"), "{}", r.stderr);
 }
