@@ -63,6 +63,18 @@ pub enum DirectionalMode {
     Sh,
 }
 
+/// How texel values are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Radiosity (form factors, solve, final gather): the baker.
+    Radiosity,
+    /// Path tracing from every texel: the reference (slow, independent of patches).
+    Pathtrace,
+    /// Photon mapping (Jensen), with the final gather when `final_gather` > 0.
+    Photon,
+}
+
 /// Named starting points for the settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -124,6 +136,14 @@ pub struct BakeConfig {
     pub ao_distance: f32,
     /// Punctual lights evaluated at s × s points per texel (1: at its centroid; 1..=8).
     pub supersample: u32,
+    /// Light-transport method.
+    pub method: Method,
+    /// Paths per texel for `method = "pathtrace"` (≥ 1).
+    pub path_samples: u32,
+    /// Photons emitted for `method = "photon"` (≥ 1).
+    pub photons: u64,
+    /// Nearest photons per density estimate (1..=4096).
+    pub photon_neighbours: u32,
 }
 
 impl Default for BakeConfig {
@@ -158,6 +178,10 @@ impl BakeConfig {
             directional: DirectionalMode::None,
             ao_distance: 0.0,
             supersample: 1,
+            method: Method::Radiosity,
+            path_samples: 1024,
+            photons: 1 << 20,
+            photon_neighbours: 128,
         }
     }
 
@@ -271,6 +295,15 @@ impl BakeConfig {
         }
         if self.sky.iter().any(|v| !v.is_finite() || *v < 0.0) {
             return bad("sky", "must be three finite numbers ≥ 0");
+        }
+        if self.path_samples < 1 {
+            return bad("path_samples", "must be ≥ 1");
+        }
+        if self.photons < 1 || self.photons > 1 << 32 {
+            return bad("photons", "must be in 1..=4294967296");
+        }
+        if self.photon_neighbours < 1 || self.photon_neighbours > 4096 {
+            return bad("photon_neighbours", "must be in 1..=4096");
         }
         if self.max_texels < 1024 {
             return bad("max_texels", "must be ≥ 1024");

@@ -66,10 +66,83 @@ impl Lights {
         (self.cdf[k] - lo) / self.total_power()
     }
 
+    /// A point on the emitters for the unit-square sample `u`: the first
+    /// coordinate picks an emitter triangle through the power CDF, its
+    /// remainder and the second coordinate a uniform point on it
+    /// (square-root parameterisation), so a stratified `u` stays stratified
+    /// over the whole emitting surface. None when there are no emitters.
+    pub fn sample(&self, g: &Geometry, u: Vec2) -> Option<EmitterSample> {
+        if self.emitters.is_empty() {
+            return None;
+        }
+        let total = self.total_power();
+        let x = u.x * total;
+        let k = self
+            .cdf
+            .partition_point(|&c| c <= x)
+            .min(self.emitters.len() - 1);
+        let tri = self.emitters[k];
+        let lo = if k == 0 { 0.0 } else { self.cdf[k - 1] };
+        let r1 = ((x - lo) / (self.cdf[k] - lo)).clamp(0.0, 1.0);
+        let su = r1.sqrt();
+        let (u, v) = (su * (1.0 - u.y), su * u.y);
+        Some(EmitterSample {
+            k,
+            tri,
+            u,
+            v,
+            point: g.point(tri, u, v),
+            normal: g.ng_ws[tri as usize],
+            pdf_area: self.pick_probability(k) / g.area[tri as usize],
+        })
+    }
+
+    /// Index in [`Lights::emitters`] of emitter triangle `tri`, if sampled.
+    pub fn emitter_index(&self, tri: u32) -> Option<usize> {
+        self.emitters.binary_search(&tri).ok()
+    }
+
+    /// Solid-angle pdf with which [`Lights::sample`] picks the direction from
+    /// `p` to point `q` (normal `nq`) of emitter `k`: p_A · d² / cos θ_q.
+    pub fn pdf_solid_angle(&self, g: &Geometry, k: usize, p: Vec3, q: Vec3, nq: Vec3) -> f32 {
+        let tri = self.emitters[k] as usize;
+        let d = q - p;
+        let dist2 = d.length_squared();
+        let cos_q = nq.dot(-d / dist2.sqrt());
+        if cos_q <= 0.0 {
+            return 0.0;
+        }
+        self.pick_probability(k) / g.area[tri] * dist2 / cos_q
+    }
+
+    /// Probability of picking emitter `k` (index in [`Lights::emitters`]).
+    pub fn pick(&self, k: usize) -> f32 {
+        self.pick_probability(k)
+    }
+
     /// True when nothing emits.
     pub fn is_empty(&self) -> bool {
         self.emitters.is_empty() && self.punctual.is_empty() && self.sky == Vec3::ZERO
     }
+}
+
+/// A point sampled on the emitters by [`Lights::sample`].
+#[derive(Clone, Copy, Debug)]
+pub struct EmitterSample {
+    /// Index in [`Lights::emitters`].
+    pub k: usize,
+    /// Global triangle id.
+    pub tri: u32,
+    /// Barycentrics (weights of corners 1 and 2).
+    pub u: f32,
+    /// See `u`.
+    pub v: f32,
+    /// The point (world).
+    pub point: Vec3,
+    /// The emitter's front normal.
+    pub normal: Vec3,
+    /// Area-measure pdf of the point (pick probability / triangle area).
+    pub pdf_area: f32,
 }
 
 /// Irradiance / π at `p` (normal `n`) from one punctual light, unshadowed,
@@ -168,16 +241,7 @@ pub fn direct_at(
     let inv_n = 1.0 / samples as f32;
     // Light-sampling pdf (solid angle) of the direction from `p` to the
     // point `q` of emitter `k` whose normal is `nq`.
-    let light_pdf = |k: usize, p: Vec3, q: Vec3, nq: Vec3| -> f32 {
-        let tri = lights.emitters[k] as usize;
-        let d = q - p;
-        let dist2 = d.length_squared();
-        let cos_q = nq.dot(-d / dist2.sqrt());
-        if cos_q <= 0.0 {
-            return 0.0;
-        }
-        lights.pick_probability(k) / g.area[tri] * dist2 / cos_q
-    };
+    let light_pdf = |k: usize, p: Vec3, q: Vec3, nq: Vec3| lights.pdf_solid_angle(g, k, p, q, nq);
 
     // Hemisphere (BRDF) samples: emitters with MIS weights, sky unweighted.
     for k in 0..samples {
@@ -214,25 +278,14 @@ pub fn direct_at(
     // whose remainder and the second coordinate place the point on the
     // triangle), so samples stay stratified over the whole emitting surface.
     if has_emitters {
-        let total = lights.total_power();
         let shift = rng.next_vec2();
         for k in 0..samples {
             let (p, n) = points[k as usize];
             let origin = offset_ray_origin(p, n);
-            let hs = hammersley(k, samples, shift);
-            let u = hs.x * total;
-            let e = lights
-                .cdf
-                .partition_point(|&c| c <= u)
-                .min(lights.emitters.len() - 1);
-            let tri = lights.emitters[e];
-            let lo = if e == 0 { 0.0 } else { lights.cdf[e - 1] };
-            let r1 = ((u - lo) / (lights.cdf[e] - lo)).clamp(0.0, 1.0);
-            // Uniform point on the triangle (square-root parameterisation).
-            let su = r1.sqrt();
-            let (bu, bv) = (su * (1.0 - hs.y), su * hs.y);
-            let q = g.point(tri, bu, bv);
-            let nq = g.ng_ws[tri as usize];
+            let Some(ls) = lights.sample(g, hammersley(k, samples, shift)) else {
+                break;
+            };
+            let (e, tri, bu, bv, q, nq) = (ls.k, ls.tri, ls.u, ls.v, ls.point, ls.normal);
             let d = q - p;
             let dist2 = d.length_squared();
             let dist = dist2.sqrt();

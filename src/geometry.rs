@@ -37,31 +37,50 @@ pub struct Geometry {
 impl Geometry {
     /// Flattens `scene` with the lightmap coordinates of `atlas`.
     pub fn new(scene: &Scene, atlas: &Atlas) -> Geometry {
+        Geometry::build(scene, Some(atlas))
+    }
+
+    /// Flattens `scene` without lightmap coordinates (all zero, page 0,
+    /// chart 0): for consumers that only trace rays, such as the reference
+    /// path tracer.
+    pub fn unmapped(scene: &Scene) -> Geometry {
+        Geometry::build(scene, None)
+    }
+
+    fn build(scene: &Scene, atlas: Option<&Atlas>) -> Geometry {
         let per_instance: Vec<Geometry> = scene
             .instances
             .par_iter()
             .enumerate()
             .map(|(i, inst)| {
                 let mesh = &scene.meshes[inst.mesh as usize];
-                let unwrap = &atlas.meshes[inst.mesh as usize];
-                let rect = atlas.instances[i];
+                let unwrap = atlas.map(|a| (&a.meshes[inst.mesh as usize], a.instances[i], a));
                 let m = inst.world_from_local;
                 let nm = inst.normal_matrix();
                 let flip = inst.mirrors();
                 let mut g = Geometry::default();
-                for (t, out_tri) in unwrap.triangles.iter().enumerate() {
+                for (t, &src) in mesh.triangles.iter().enumerate() {
                     let mut order = [0usize, 1, 2];
                     if flip {
                         order.swap(1, 2);
                     }
-                    let src = mesh.triangles[t];
                     let p = order.map(|k| m.transform_point3(mesh.positions[src[k] as usize]));
                     let n =
                         order.map(|k| (nm * mesh.normals[src[k] as usize]).normalize_or(Vec3::Y));
                     let uv0 = order.map(|k| mesh.uv0[src[k] as usize]);
-                    let lm = order.map(|k| {
-                        rect.to_texels(unwrap.uv[out_tri[k] as usize], atlas.width, atlas.height)
-                    });
+                    let (lm, page, chart) = match unwrap {
+                        Some((u, rect, a)) => {
+                            let out_tri = u.triangles[t];
+                            (
+                                order.map(|k| {
+                                    rect.to_texels(u.uv[out_tri[k] as usize], a.width, a.height)
+                                }),
+                                rect.page,
+                                u.chart[out_tri[0] as usize],
+                            )
+                        }
+                        None => ([Vec2::ZERO; 3], 0, 0),
+                    };
                     let cross = (p[1] - p[0]).cross(p[2] - p[0]);
                     g.instance.push(i as u32);
                     g.p_ws.push(p);
@@ -70,8 +89,8 @@ impl Geometry {
                     g.area.push(0.5 * cross.length());
                     g.uv0.push(uv0);
                     g.uv_lm.push(lm);
-                    g.page.push(rect.page);
-                    g.chart.push(unwrap.chart[out_tri[0] as usize]);
+                    g.page.push(page);
+                    g.chart.push(chart);
                     g.material.push(mesh.triangle_material[t]);
                 }
                 g

@@ -36,6 +36,7 @@ pub mod incremental;
 pub mod lightmap;
 pub mod output;
 pub mod patches;
+pub mod photon;
 #[cfg(feature = "preview")]
 pub mod preview;
 pub mod progress;
@@ -46,6 +47,7 @@ pub mod scene;
 pub mod seams;
 pub mod solve;
 pub mod texels;
+pub mod trace;
 
 pub use config::BakeConfig;
 pub use error::{Error, Result};
@@ -185,204 +187,284 @@ pub fn bake<'s>(
         rays: &rays,
     };
     let advance = |n| progress.advance(n);
-    let progressive = config.solver == config::Solver::Progressive;
-    if config.solver == config::Solver::Direct && patches.len() > config.direct_max_patches as usize
-    {
-        return Err(Error::Config {
-            key: "direct_max_patches".into(),
-            message: format!(
-                "the direct solver is O(n³) and refuses {} patches (limit {}); use jacobi, gauss-seidel or progressive, or coarser patches",
-                patches.len(),
-                config.direct_max_patches
-            ),
-        });
-    }
-    // Progressive refinement computes rows on demand: no matrix is stored.
-    timer.begin(
-        "form_factors",
-        if progressive { 0 } else { patches.len() as u64 },
-    );
-    let form_factors = (!progressive).then(|| match config.form_factors {
-        config::FormFactorMethod::Raycast => {
-            form_factors::raycast::compute(&surfaces, config.rays_per_patch, config.seed, &advance)
-        }
-        config::FormFactorMethod::Hemicube => {
-            form_factors::hemicube::compute(&surfaces, config.hemicube_resolution, &advance)
-        }
-    });
-    timer.end("form_factors");
-
-    timer.begin("direct", texels.len() as u64);
-    let sampled = direct_sampled_materials(scene, &geometry, config.emitters);
-    let lights = direct::Lights::new(scene, &geometry, &sampled, Vec3::from(config.sky));
-    let (texel_direct, direct_dir, direct_rays) = direct::texels(
-        &surfaces,
-        &lights,
-        config.direct_samples,
-        config.supersample,
-        config.seed,
-        &advance,
-    );
-    let patch_direct: Vec<Vec3> = (0..patches.len())
-        .map(|i| {
-            let sum: Vec3 = patches
-                .texels_of(i)
-                .iter()
-                .map(|&t| texel_direct[t as usize] * texels.area[t as usize])
-                .sum();
-            sum / patches.area[i]
-        })
-        .collect();
-    timer.end("direct");
-
-    // Emission sampled as direct light is in D already; only the other
-    // emitters' emission enters the solve: L = E' + ρ H, H = D + F L.
-    let solve_emission: Vec<Vec3> = (0..patches.len())
-        .map(|i| {
-            let t = patches.texels_of(i)[0] as usize;
-            let m = geometry.material[texels.triangle[t] as usize] as usize;
-            if sampled[m] {
-                Vec3::ZERO
-            } else {
-                patches.emission[i]
+    let solved = match config.method {
+        config::Method::Radiosity => {
+            let progressive = config.solver == config::Solver::Progressive;
+            if config.solver == config::Solver::Direct
+                && patches.len() > config.direct_max_patches as usize
+            {
+                return Err(Error::Config {
+                    key: "direct_max_patches".into(),
+                    message: format!(
+                        "the direct solver is O(n³) and refuses {} patches (limit {}); use jacobi, gauss-seidel or progressive, or coarser patches",
+                        patches.len(),
+                        config.direct_max_patches
+                    ),
+                });
             }
-        })
-        .collect();
-    let system = solve::System {
-        emission: &solve_emission,
-        albedo: &patches.albedo,
-        direct: &patch_direct,
-        area: &patches.area,
-    };
-    let max_shots = config.max_iterations as u64 * patches.len() as u64;
-    timer.begin(
-        "solve",
-        if progressive {
-            max_shots
-        } else {
-            config.max_iterations as u64
-        },
-    );
-    let (solution, row_sums, ff_stats) = match &form_factors {
-        Some(ff) => {
-            let f = &ff.matrix;
-            let solution = match config.solver {
-                config::Solver::GaussSeidel => solve::gauss_seidel::solve(
-                    f,
-                    &system,
-                    config.tolerance,
-                    config.max_iterations,
-                    &advance,
-                ),
-                config::Solver::Direct => solve::dense::solve(f, &system).ok_or_else(|| {
-                    Error::Limit(
-                        "the radiosity matrix is singular (an albedo of 1 in a closed scene?)"
-                            .into(),
-                    )
-                })?,
-                _ => solve::jacobi::solve(
-                    f,
-                    &system,
-                    config.tolerance,
-                    config.max_iterations,
-                    &advance,
-                ),
-            };
-            (solution, ff.row_sums(), ff.stats.clone())
-        }
-        None => {
-            let rows = form_factors::OnDemand::new(&surfaces, config);
-            let p =
-                solve::progressive::solve(&rows, &system, config.tolerance, max_shots, &advance);
-            // Shooting scales a shooter's row by Aᵢ/Aⱼ (reciprocity), which
-            // is noisy for small receivers (and biased for the hemicube's
-            // point-sampled rows). Two gathering sweeps from each patch's own
-            // row, L ← E + ρ (D + F L), put the accuracy back on the
-            // receiving side (each divides the shooting error by ~1/ρ);
-            // rows are made and dropped, so memory stays O(n).
-            let mut solution = p.solution;
-            let mut gathered: Vec<(Vec3, f32)> = Vec::new();
-            for _ in 0..2 {
-                gathered = (0..patches.len())
-                    .into_par_iter()
-                    .map(|j| {
-                        let row = rows.row(j);
-                        let h = row
-                            .iter()
-                            .map(|&(k, f)| solution.radiance[k as usize] * f)
-                            .sum::<Vec3>();
-                        (system.direct[j] + h, row.iter().map(|e| e.1).sum())
-                    })
-                    .collect();
-                solution.irradiance = gathered.iter().map(|g| g.0).collect();
-                solution.radiance = (0..patches.len())
-                    .map(|j| system.emission[j] + system.albedo[j] * solution.irradiance[j])
-                    .collect();
-            }
-            (
-                solution,
-                gathered.iter().map(|g| g.1).collect(),
-                rows.stats(),
-            )
-        }
-    };
-    if solution.residual >= config.tolerance && config.solver != config::Solver::Direct {
-        warnings.push(format!(
-            "the solver stopped at its limit (max_iterations = {}) with residual {:.2e} above tolerance {:.2e}",
-            config.max_iterations, solution.residual, config.tolerance
-        ));
-    }
-    timer.end("solve");
-
-    let indirect: Vec<Vec3> = solution
-        .irradiance
-        .iter()
-        .zip(&patch_direct)
-        .map(|(h, d)| *h - *d)
-        .collect();
-    let first = lightmap::first_pass(&texels, &patches, &texel_direct, &indirect);
-    let extras = gather::Extras {
-        directional: config.directional == config::DirectionalMode::Sh,
-        sky: Vec3::from(config.sky),
-        ao_distance: config.ao_distance,
-    };
-    let mut gathered_dir: Vec<direct::Directional> = Vec::new();
-    let mut ao: Vec<f32> = Vec::new();
-    let (mut texel_values, valid, gather_rays) = if config.final_gather > 0 {
-        timer.begin("final_gather", texels.len() as u64);
-        let g = gather::gather(
-            &surfaces,
-            &first,
-            &sampled,
-            config.final_gather,
-            config.seed,
-            extras,
-            &advance,
-        );
-        gathered_dir = g.directional;
-        ao = g.ao;
-        timer.end("final_gather");
-        let mut indirect = g.indirect;
-        if config.denoise {
-            timer.begin("denoise", 0);
-            denoise::atrous(
-                &texels,
-                &mut indirect,
-                &g.valid,
-                &g.variance,
-                1.0 / atlas.texels_per_meter,
+            // Progressive refinement computes rows on demand: no matrix is stored.
+            timer.begin(
+                "form_factors",
+                if progressive { 0 } else { patches.len() as u64 },
             );
-            timer.end("denoise");
+            let form_factors = (!progressive).then(|| match config.form_factors {
+                config::FormFactorMethod::Raycast => form_factors::raycast::compute(
+                    &surfaces,
+                    config.rays_per_patch,
+                    config.seed,
+                    &advance,
+                ),
+                config::FormFactorMethod::Hemicube => {
+                    form_factors::hemicube::compute(&surfaces, config.hemicube_resolution, &advance)
+                }
+            });
+            timer.end("form_factors");
+
+            timer.begin("direct", texels.len() as u64);
+            let sampled = direct_sampled_materials(scene, &geometry, config.emitters);
+            let lights = direct::Lights::new(scene, &geometry, &sampled, Vec3::from(config.sky));
+            let (texel_direct, direct_dir, direct_rays) = direct::texels(
+                &surfaces,
+                &lights,
+                config.direct_samples,
+                config.supersample,
+                config.seed,
+                &advance,
+            );
+            let patch_direct: Vec<Vec3> = (0..patches.len())
+                .map(|i| {
+                    let sum: Vec3 = patches
+                        .texels_of(i)
+                        .iter()
+                        .map(|&t| texel_direct[t as usize] * texels.area[t as usize])
+                        .sum();
+                    sum / patches.area[i]
+                })
+                .collect();
+            timer.end("direct");
+
+            // Emission sampled as direct light is in D already; only the other
+            // emitters' emission enters the solve: L = E' + ρ H, H = D + F L.
+            let solve_emission: Vec<Vec3> = (0..patches.len())
+                .map(|i| {
+                    let t = patches.texels_of(i)[0] as usize;
+                    let m = geometry.material[texels.triangle[t] as usize] as usize;
+                    if sampled[m] {
+                        Vec3::ZERO
+                    } else {
+                        patches.emission[i]
+                    }
+                })
+                .collect();
+            let system = solve::System {
+                emission: &solve_emission,
+                albedo: &patches.albedo,
+                direct: &patch_direct,
+                area: &patches.area,
+            };
+            let max_shots = config.max_iterations as u64 * patches.len() as u64;
+            timer.begin(
+                "solve",
+                if progressive {
+                    max_shots
+                } else {
+                    config.max_iterations as u64
+                },
+            );
+            let (solution, row_sums, ff_stats) = match &form_factors {
+                Some(ff) => {
+                    let f = &ff.matrix;
+                    let solution = match config.solver {
+                        config::Solver::GaussSeidel => solve::gauss_seidel::solve(
+                            f,
+                            &system,
+                            config.tolerance,
+                            config.max_iterations,
+                            &advance,
+                        ),
+                        config::Solver::Direct => solve::dense::solve(f, &system).ok_or_else(|| {
+                            Error::Limit(
+                                "the radiosity matrix is singular (an albedo of 1 in a closed scene?)"
+                                    .into(),
+                            )
+                        })?,
+                        _ => solve::jacobi::solve(
+                            f,
+                            &system,
+                            config.tolerance,
+                            config.max_iterations,
+                            &advance,
+                        ),
+                    };
+                    (solution, ff.row_sums(), ff.stats.clone())
+                }
+                None => {
+                    let rows = form_factors::OnDemand::new(&surfaces, config);
+                    let p = solve::progressive::solve(
+                        &rows,
+                        &system,
+                        config.tolerance,
+                        max_shots,
+                        &advance,
+                    );
+                    // Shooting scales a shooter's row by Aᵢ/Aⱼ (reciprocity), which
+                    // is noisy for small receivers (and biased for the hemicube's
+                    // point-sampled rows). Two gathering sweeps from each patch's own
+                    // row, L ← E + ρ (D + F L), put the accuracy back on the
+                    // receiving side (each divides the shooting error by ~1/ρ);
+                    // rows are made and dropped, so memory stays O(n).
+                    let mut solution = p.solution;
+                    let mut gathered: Vec<(Vec3, f32)> = Vec::new();
+                    for _ in 0..2 {
+                        gathered = (0..patches.len())
+                            .into_par_iter()
+                            .map(|j| {
+                                let row = rows.row(j);
+                                let h = row
+                                    .iter()
+                                    .map(|&(k, f)| solution.radiance[k as usize] * f)
+                                    .sum::<Vec3>();
+                                (system.direct[j] + h, row.iter().map(|e| e.1).sum())
+                            })
+                            .collect();
+                        solution.irradiance = gathered.iter().map(|g| g.0).collect();
+                        solution.radiance = (0..patches.len())
+                            .map(|j| system.emission[j] + system.albedo[j] * solution.irradiance[j])
+                            .collect();
+                    }
+                    (
+                        solution,
+                        gathered.iter().map(|g| g.1).collect(),
+                        rows.stats(),
+                    )
+                }
+            };
+            if solution.residual >= config.tolerance && config.solver != config::Solver::Direct {
+                warnings.push(format!(
+                    "the solver stopped at its limit (max_iterations = {}) with residual {:.2e} above tolerance {:.2e}",
+                    config.max_iterations, solution.residual, config.tolerance
+                ));
+            }
+            timer.end("solve");
+
+            let indirect: Vec<Vec3> = solution
+                .irradiance
+                .iter()
+                .zip(&patch_direct)
+                .map(|(h, d)| *h - *d)
+                .collect();
+            let first = lightmap::first_pass(&texels, &patches, &texel_direct, &indirect);
+            let extras = gather::Extras {
+                directional: config.directional == config::DirectionalMode::Sh,
+                sky: Vec3::from(config.sky),
+                ao_distance: config.ao_distance,
+            };
+            let mut gathered_dir: Vec<direct::Directional> = Vec::new();
+            let mut ao: Vec<f32> = Vec::new();
+            let (texel_values, valid, gather_rays) = if config.final_gather > 0 {
+                timer.begin("final_gather", texels.len() as u64);
+                let g = gather::gather(
+                    &surfaces,
+                    &first,
+                    &sampled,
+                    config.final_gather,
+                    config.seed,
+                    extras,
+                    &advance,
+                );
+                gathered_dir = g.directional;
+                ao = g.ao;
+                timer.end("final_gather");
+                let mut indirect = g.indirect;
+                if config.denoise {
+                    timer.begin("denoise", 0);
+                    denoise::atrous(
+                        &texels,
+                        &mut indirect,
+                        &g.valid,
+                        &g.variance,
+                        1.0 / atlas.texels_per_meter,
+                    );
+                    timer.end("denoise");
+                }
+                let values = texel_direct
+                    .iter()
+                    .zip(&indirect)
+                    .map(|(d, i)| *d + *i)
+                    .collect();
+                (values, g.valid, g.rays)
+            } else {
+                (first, vec![true; texels.len()], 0)
+            };
+            Solved {
+                form_factors,
+                row_sums,
+                ff_stats,
+                texel_direct,
+                direct_dir,
+                patch_direct,
+                solution,
+                direct_rays,
+                texel_values,
+                valid,
+                gather_rays,
+                gathered_dir,
+                ao,
+            }
         }
-        let values = texel_direct
-            .iter()
-            .zip(&indirect)
-            .map(|(d, i)| *d + *i)
-            .collect();
-        (values, g.valid, g.rays)
-    } else {
-        (first, vec![true; texels.len()], 0)
+        config::Method::Pathtrace | config::Method::Photon => {
+            let sky = Vec3::from(config.sky);
+            let tracer = trace::Tracer::new(scene, &geometry, &rays, sky);
+            let (texel_values, valid, paths) = if config.method == config::Method::Pathtrace {
+                timer.begin("path_trace", texels.len() as u64);
+                let (v, ok) = trace::reference_texels(
+                    &tracer,
+                    &texels,
+                    &|t, j| surfaces.sample_texel(t, j),
+                    config.path_samples,
+                    config.seed,
+                    &advance,
+                );
+                timer.end("path_trace");
+                (v, ok, texels.len() as u64 * config.path_samples as u64)
+            } else {
+                timer.begin("photons", texels.len() as u64);
+                let out = photon::bake_texels(&surfaces, &tracer, config, &advance);
+                timer.end("photons");
+                out
+            };
+            Solved {
+                form_factors: None,
+                row_sums: Vec::new(),
+                ff_stats: Default::default(),
+                texel_direct: vec![Vec3::ZERO; texels.len()],
+                direct_dir: vec![[Vec3::ZERO; 3]; texels.len()],
+                patch_direct: Vec::new(),
+                solution: Solution::default(),
+                direct_rays: 0,
+                texel_values,
+                valid,
+                gather_rays: paths,
+                gathered_dir: Vec::new(),
+                ao: Vec::new(),
+            }
+        }
     };
+    let Solved {
+        form_factors,
+        row_sums,
+        ff_stats,
+        texel_direct,
+        direct_dir,
+        patch_direct,
+        solution,
+        direct_rays,
+        mut texel_values,
+        valid,
+        gather_rays,
+        gathered_dir,
+        ao,
+    } = solved;
     timer.begin("lightmaps", 0);
     lightmap::fill_invalid(
         &texels,
@@ -461,6 +543,23 @@ pub fn bake<'s>(
         stages: timer.stages,
         warnings,
     })
+}
+
+/// What the light-transport stage hands to the lightmap stage.
+struct Solved {
+    form_factors: Option<FormFactors>,
+    row_sums: Vec<f32>,
+    ff_stats: form_factors::FormFactorStats,
+    texel_direct: Vec<Vec3>,
+    direct_dir: Vec<direct::Directional>,
+    patch_direct: Vec<Vec3>,
+    solution: Solution,
+    direct_rays: u64,
+    texel_values: Vec<Vec3>,
+    valid: Vec<bool>,
+    gather_rays: u64,
+    gathered_dir: Vec<direct::Directional>,
+    ao: Vec<f32>,
 }
 
 /// Which materials' emission is sampled as direct light (per

@@ -7,7 +7,7 @@ use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use radbake::config::{
-    DirectionalMode, EmitterSampling, FormFactorMethod, Preset, Solver, UvSource,
+    DirectionalMode, EmitterSampling, FormFactorMethod, Method, Preset, Solver, UvSource,
 };
 use radbake::report::StageTime;
 use radbake::BakeConfig;
@@ -34,6 +34,192 @@ enum Command {
     /// Look at a baked .glb in a window (or render it offscreen with --headless).
     #[cfg(feature = "preview")]
     Preview(PreviewArgs),
+    /// Path-trace an image of a scene: the reference, or the final pass over a bake's lightmaps.
+    Render(RenderArgs),
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// The scene (.gltf or .glb), as given to `radbake bake`.
+    scene: PathBuf,
+    /// Output image: `.exr` (linear; a tone-mapped `.png` is written beside it) or `.png`.
+    #[arg(long, short)]
+    out: PathBuf,
+    /// Final pass: read this bake folder's lightmaps at the hits of the indirect rays.
+    #[arg(long, value_name = "BAKE_DIR")]
+    lightmaps: Option<PathBuf>,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "640x360", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 64)]
+    spp: u32,
+    /// Estimator of the reference (the final pass always traces paths).
+    #[arg(long, value_enum, default_value = "path")]
+    integrator: radbake::trace::render::Integrator,
+    /// The glTF camera of this name [default: the first camera, or a framing of the scene].
+    #[arg(long, conflicts_with = "look_from")]
+    camera: Option<String>,
+    /// Eye position `x,y,z` (world, metres).
+    #[arg(long, value_parser = parse_vec3)]
+    look_from: Option<[f32; 3]>,
+    /// Look towards `x,y,z` [default: the centre of the scene].
+    #[arg(long, value_parser = parse_vec3, requires = "look_from")]
+    look_at: Option<[f32; 3]>,
+    /// Vertical field of view in degrees for --look-from and the framing.
+    #[arg(long, default_value_t = 50.0)]
+    fov: f32,
+    /// Sky radiance `r,g,b` [default: the bake's with --lightmaps, else 0].
+    #[arg(long, value_parser = parse_rgb)]
+    sky: Option<[f32; 3]>,
+    /// Exposure of the PNG in stops.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    /// Seed of the random sequences (images are deterministic for a seed).
+    #[arg(long, default_value_t = 0x5eed)]
+    seed: u64,
+    /// Print nothing but errors.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+fn run_render(args: &RenderArgs) -> Result<(), (u8, String)> {
+    use radbake::trace::render::{self, Integrator, View};
+    let start = Instant::now();
+    let scene = radbake::scene::load(&args.scene, &Default::default()).map_err(lib_err)?;
+    let baked = match &args.lightmaps {
+        Some(dir) => Some(render::load_bake(&scene, dir).map_err(lib_err)?),
+        None => None,
+    };
+    let unmapped;
+    let geometry = match &baked {
+        Some(b) => &b.geometry,
+        None => {
+            unmapped = radbake::geometry::Geometry::unmapped(&scene);
+            &unmapped
+        }
+    };
+    let sky = args
+        .sky
+        .or(baked.as_ref().map(|b| b.config.sky))
+        .unwrap_or([0.0; 3]);
+    let rays = radbake::raycast::RayCaster::new(&scene, geometry);
+    let mut tracer = radbake::trace::Tracer::new(&scene, geometry, &rays, sky.into());
+    if let Some(b) = &baked {
+        tracer.lightmaps = Some(radbake::trace::LightmapLookup {
+            width: b.width,
+            height: b.height,
+            pages: &b.pages,
+        });
+    }
+    let mut integrator = args.integrator;
+    if integrator == Integrator::Bdpt
+        && (baked.is_some() || !radbake::trace::bdpt::supports(&tracer))
+    {
+        if !args.quiet {
+            eprintln!("warning: BDPT covers Lambertian scenes without lightmaps; rendering with the path tracer");
+        }
+        integrator = Integrator::Path;
+    }
+    let yfov = args.fov.to_radians();
+    let view = match (&args.camera, args.look_from) {
+        (Some(name), _) => {
+            let cam = scene
+                .cameras
+                .iter()
+                .find(|c| &c.name == name)
+                .ok_or_else(|| {
+                    (
+                        1,
+                        format!("{}: no camera named `{name}`", args.scene.display()),
+                    )
+                })?;
+            View::from_camera(cam)
+        }
+        (None, Some(from)) => {
+            let at = args
+                .look_at
+                .map(Into::into)
+                .unwrap_or_else(|| centre(geometry));
+            View::look_at(from.into(), at, yfov)
+        }
+        (None, None) => match scene.cameras.first() {
+            Some(cam) => View::from_camera(cam),
+            None => View::framing(geometry, yfov),
+        },
+    };
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(args.size.1 as u64).with_style(
+            ProgressStyle::with_template(
+                "{msg:>13} [{bar:30}] {pos}/{len} rows {elapsed} (eta {eta})",
+            )
+            .expect("static template")
+            .progress_chars("=> "),
+        )
+    };
+    bar.set_message(if baked.is_some() {
+        "final pass"
+    } else {
+        "reference"
+    });
+    let image = render::render(
+        &tracer,
+        &view,
+        args.size,
+        args.spp,
+        integrator,
+        args.seed,
+        &|n| bar.inc(n),
+    );
+    bar.finish_and_clear();
+    let io = |e: radbake::Error| (3u8, e.to_string());
+    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| (3u8, format!("{}: {e}", dir.display())))?;
+    }
+    let is_exr = args
+        .out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if is_exr {
+        image.write_exr(&args.out).map_err(io)?;
+        image
+            .write_png(&args.out.with_extension("png"), args.exposure)
+            .map_err(io)?;
+    } else {
+        image.write_png(&args.out, args.exposure).map_err(io)?;
+    }
+    if !args.quiet {
+        let m = image.mean();
+        eprintln!(
+            "rendered {}x{} at {} spp ({:?}) in {:.2} s, mean radiance {:.4} {:.4} {:.4} → {}",
+            args.size.0,
+            args.size.1,
+            args.spp,
+            integrator,
+            start.elapsed().as_secs_f64(),
+            m.x,
+            m.y,
+            m.z,
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// Centre of the scene's bounding box.
+fn centre(geometry: &radbake::geometry::Geometry) -> glam::Vec3 {
+    let (mut lo, mut hi) = (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN));
+    for p in geometry.p_ws.iter().flatten() {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    if lo.x > hi.x {
+        glam::Vec3::ZERO
+    } else {
+        (lo + hi) * 0.5
+    }
 }
 
 #[cfg(feature = "preview")]
@@ -79,7 +265,6 @@ struct PreviewArgs {
     tone_map: radbake::preview::ToneMap,
 }
 
-#[cfg(feature = "preview")]
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
         .split_once(['x', 'X'])
@@ -92,7 +277,6 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
-#[cfg(feature = "preview")]
 fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
     match parse_rgb(s)? {
         v if s.split(',').count() == 3 => Ok(v),
@@ -212,6 +396,18 @@ struct BakeArgs {
     /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
     #[arg(long, value_enum)]
     emitters: Option<EmitterSampling>,
+    /// Light transport: radiosity, or the pathtrace / photon references [default: radiosity].
+    #[arg(long, value_enum)]
+    method: Option<Method>,
+    /// Paths per texel with --method pathtrace [default: 1024].
+    #[arg(long)]
+    path_samples: Option<u32>,
+    /// Photons emitted with --method photon [default: 1048576].
+    #[arg(long)]
+    photons: Option<u64>,
+    /// Nearest photons per estimate with --method photon [default: 128].
+    #[arg(long)]
+    photon_neighbours: Option<u32>,
     /// Starting settings, below the config file and flags [default: medium].
     #[arg(long, value_enum)]
     preset: Option<Preset>,
@@ -278,7 +474,11 @@ impl BakeArgs {
             denoise,
             directional,
             ao_distance,
-            supersample
+            supersample,
+            method,
+            path_samples,
+            photons,
+            photon_neighbours
         );
         c.validate()?;
         Ok(c)
@@ -535,6 +735,7 @@ fn main() -> ExitCode {
     }));
     let result = std::panic::catch_unwind(|| match &cli.command {
         Command::Bake(args) => run_bake(args),
+        Command::Render(args) => run_render(args),
         #[cfg(feature = "preview")]
         Command::Preview(args) => run_preview(args),
     });

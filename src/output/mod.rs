@@ -11,6 +11,7 @@ use crate::lightmap::Lightmaps;
 use crate::report::Report;
 use crate::scene::texture::linear_to_srgb;
 use crate::scene::Scene;
+use glam::Vec3;
 use std::path::{Path, PathBuf};
 
 /// Writes `path` atomically: `write` fills a temporary sibling, which is
@@ -98,8 +99,21 @@ pub fn write_bytes_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// # Errors
 /// [`Error::Encode`] or [`Error::Io`].
 pub fn write_exr(path: &Path, lightmaps: &Lightmaps, page: usize) -> Result<()> {
-    let (w, h) = (lightmaps.width as usize, lightmaps.height as usize);
-    let values = &lightmaps.pages[page];
+    write_exr_rgb(
+        path,
+        lightmaps.width,
+        lightmaps.height,
+        &lightmaps.pages[page],
+    )
+}
+
+/// Writes a row-major `width × height` linear RGB image as float OpenEXR,
+/// atomically.
+///
+/// # Errors
+/// [`Error::Encode`] or [`Error::Io`].
+pub fn write_exr_rgb(path: &Path, width: u32, height: u32, values: &[Vec3]) -> Result<()> {
+    let (w, h) = (width as usize, height as usize);
     write_atomic(path, |tmp| {
         use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage as _};
         // Compressed serially: exr's parallel writer stores blocks in the

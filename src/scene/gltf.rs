@@ -9,7 +9,9 @@
 //! fans), degenerate triangles dropped and counted.
 
 use super::texture::{Texture, TextureRef, Wrap};
-use super::{Alpha, Camera, ImportStats, Instance, Light, LightKind, Material, Mesh, Scene};
+use super::{
+    Alpha, Camera, ImportStats, Instance, Light, LightKind, Material, Mesh, Scene, Specular,
+};
 use crate::error::{Error, Result};
 use base64::Engine as _;
 use glam::{Mat4, Vec2, Vec3};
@@ -874,6 +876,30 @@ fn import_material(
         emission: Vec3::from(emissive) * strength,
         emission_texture,
         double_sided: material.double_sided(),
+        specular: {
+            let pbr = material.pbr_metallic_roughness();
+            let transmission = material
+                .transmission()
+                .map_or(0.0, |t| t.transmission_factor());
+            if transmission >= 0.5 {
+                // The spec's default index of refraction is 1.5.
+                let ior = material.ior().unwrap_or(1.5);
+                Specular::Glass {
+                    ior: if ior.is_finite() && ior >= 1.0 {
+                        ior
+                    } else {
+                        1.5
+                    },
+                }
+            } else if pbr.metallic_factor() >= 1.0
+                && pbr.roughness_factor() <= 0.0
+                && pbr.metallic_roughness_texture().is_none()
+            {
+                Specular::Mirror
+            } else {
+                Specular::None
+            }
+        },
         alpha: match material.alpha_mode() {
             gltf::material::AlphaMode::Opaque => Alpha::Opaque,
             gltf::material::AlphaMode::Mask => Alpha::Mask {

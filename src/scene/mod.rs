@@ -103,6 +103,27 @@ pub struct Material {
     pub double_sided: bool,
     /// Cut-out mode.
     pub alpha: Alpha,
+    /// Perfectly specular response, traced by the path tracer's Whitted-style
+    /// paths (the radiosity bake treats every surface as Lambertian).
+    pub specular: Specular,
+}
+
+/// Perfectly specular materials the path tracer follows recursively.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Specular {
+    /// Lambertian only.
+    #[default]
+    None,
+    /// A perfect mirror tinted by the base colour: glTF `metallicFactor` 1
+    /// and `roughnessFactor` 0.
+    Mirror,
+    /// A smooth dielectric (Fresnel reflection and refraction, tinted by the
+    /// base colour): `KHR_materials_transmission` factor ≥ 0.5, with
+    /// `KHR_materials_ior` (default 1.5).
+    Glass {
+        /// Index of refraction.
+        ior: f32,
+    },
 }
 
 impl Material {
@@ -118,6 +139,7 @@ impl Material {
             emission_texture: None,
             double_sided: false,
             alpha: Alpha::Opaque,
+            specular: Specular::None,
         }
     }
 

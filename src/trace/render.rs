@@ -1,0 +1,328 @@
+//! Images by path tracing from a pinhole camera: the reference (pure path
+//! tracing or BDPT) and the final pass that reads the lightmaps. Each pixel
+//! gets its own random stream, so images are identical whatever the thread
+//! count; the per-pixel variance of the mean is kept for comparisons
+//! (Mitsuba-style z-tests).
+
+use super::Tracer;
+use crate::error::Result;
+use crate::geometry::Geometry;
+use crate::sampling::{stratified, Stream};
+use crate::scene::texture::linear_to_srgb;
+use crate::scene::Camera;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use std::path::Path;
+
+/// Stream purpose id of camera paths.
+const PURPOSE: u64 = 6;
+
+/// A pinhole camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    /// Eye position (world).
+    pub eye: Vec3,
+    /// Unit viewing direction.
+    pub forward: Vec3,
+    /// Unit right vector.
+    pub right: Vec3,
+    /// Unit up vector.
+    pub up: Vec3,
+    /// tan(yfov / 2).
+    pub tan_half_y: f32,
+}
+
+impl View {
+    /// Looking from `eye` at `target` with +Y up and vertical field of view `yfov`.
+    pub fn look_at(eye: Vec3, target: Vec3, yfov: f32) -> View {
+        let forward = (target - eye).normalize_or(Vec3::NEG_Z);
+        let up_hint = if forward.y.abs() > 0.999 {
+            Vec3::Z
+        } else {
+            Vec3::Y
+        };
+        let right = forward.cross(up_hint).normalize();
+        View {
+            eye,
+            forward,
+            right,
+            up: right.cross(forward),
+            tan_half_y: (yfov * 0.5).tan(),
+        }
+    }
+
+    /// A glTF camera (looks down its −Z, +Y up).
+    pub fn from_camera(camera: &Camera) -> View {
+        let m = camera.world_from_camera;
+        let eye = m.transform_point3(Vec3::ZERO);
+        let forward = m.transform_vector3(Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
+        let right = m.transform_vector3(Vec3::X).normalize_or(Vec3::X);
+        View {
+            eye,
+            forward,
+            right,
+            up: right.cross(forward).normalize_or(Vec3::Y),
+            tan_half_y: (camera.yfov * 0.5).tan(),
+        }
+    }
+
+    /// The whole scene in view: from the front-top of its bounding sphere.
+    pub fn framing(geometry: &Geometry, yfov: f32) -> View {
+        let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+        for p in geometry.p_ws.iter().flatten() {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        if lo.x > hi.x {
+            return View::look_at(Vec3::Z, Vec3::ZERO, yfov);
+        }
+        let centre = (lo + hi) * 0.5;
+        let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        let distance = radius / (yfov * 0.5).sin();
+        View::look_at(
+            centre + Vec3::new(0.0, 0.25, 1.0).normalize() * distance,
+            centre,
+            yfov,
+        )
+    }
+
+    /// Unit direction through film point `ndc` ∈ [−1, 1]² (y up) for an
+    /// image of aspect ratio `aspect` = width / height.
+    pub fn ray(&self, ndc: Vec2, aspect: f32) -> Vec3 {
+        (self.forward
+            + self.right * (ndc.x * self.tan_half_y * aspect)
+            + self.up * (ndc.y * self.tan_half_y))
+            .normalize()
+    }
+}
+
+/// Which estimator renders an image.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Integrator {
+    /// Unidirectional path tracing with next-event estimation and MIS.
+    Path,
+    /// Bidirectional path tracing (Veach 1997) with balance-heuristic MIS.
+    Bdpt,
+}
+
+/// A rendered image: linear radiance and the variance of each pixel's mean.
+#[derive(Clone, Debug, Default)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major radiance (top row first).
+    pub pixels: Vec<Vec3>,
+    /// Per-pixel variance of the mean, per channel.
+    pub variance: Vec<Vec3>,
+}
+
+impl Image {
+    /// Mean over all pixels.
+    pub fn mean(&self) -> Vec3 {
+        self.pixels.iter().copied().sum::<Vec3>() / self.pixels.len().max(1) as f32
+    }
+
+    /// Writes the linear image as float OpenEXR (atomically).
+    ///
+    /// # Errors
+    /// [`crate::Error::Encode`] or [`crate::Error::Io`].
+    pub fn write_exr(&self, path: &Path) -> Result<()> {
+        crate::output::write_exr_rgb(path, self.width, self.height, &self.pixels)
+    }
+
+    /// Writes an 8-bit sRGB PNG, exposed by 2^`exposure_ev` and tone-mapped
+    /// with the ACES filmic fit of Narkowicz (2015).
+    ///
+    /// # Errors
+    /// [`crate::Error::Encode`] or [`crate::Error::Io`].
+    pub fn write_png(&self, path: &Path, exposure_ev: f32) -> Result<()> {
+        let scale = 2f32.powf(exposure_ev);
+        let aces = |x: f32| {
+            let x = x * scale;
+            ((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0)
+        };
+        let img = image::RgbImage::from_fn(self.width, self.height, |x, y| {
+            let v = self.pixels[(y * self.width + x) as usize];
+            let c = |c: f32| (linear_to_srgb(aces(c)) * 255.0 + 0.5) as u8;
+            image::Rgb([c(v.x), c(v.y), c(v.z)])
+        });
+        crate::output::write_atomic(path, |tmp| {
+            img.save_with_format(tmp, image::ImageFormat::Png)
+                .map_err(|e| crate::Error::Encode {
+                    path: path.to_path_buf(),
+                    message: e.to_string(),
+                })
+        })
+    }
+}
+
+/// A finished bake read back for the final pass: the geometry with the
+/// bake's lightmap coordinates (the unwrap is re-run with the bake's
+/// settings, which reproduces its atlas exactly: the unwrap is
+/// deterministic), the lightmap pages from its EXR files, and its sky.
+pub struct BakedLightmaps {
+    /// World triangles with the bake's lightmap coordinates.
+    pub geometry: Geometry,
+    /// Page size.
+    pub width: u32,
+    /// Page size.
+    pub height: u32,
+    /// Irradiance / π pages.
+    pub pages: Vec<Vec<Vec3>>,
+    /// The bake's settings.
+    pub config: crate::BakeConfig,
+}
+
+/// Reads the bake in `dir` (its `report.json` and `lightmap_<page>.exr`)
+/// for `scene`.
+///
+/// # Errors
+/// [`crate::Error::Io`] when a file is missing or unreadable,
+/// [`crate::Error::Parse`]-like [`crate::Error::Invalid`] when the bake does
+/// not match the scene (page count or size).
+pub fn load_bake(scene: &crate::scene::Scene, dir: &Path) -> Result<BakedLightmaps> {
+    use crate::Error;
+    let report_path = dir.join("report.json");
+    let text = std::fs::read_to_string(&report_path).map_err(|source| Error::Io {
+        path: report_path.clone(),
+        source,
+    })?;
+    let invalid = |location: &str, message: String| Error::Invalid {
+        path: report_path.clone(),
+        location: location.into(),
+        message,
+    };
+    let report: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| invalid("report.json", e.to_string()))?;
+    let config: crate::BakeConfig = serde_json::from_value(report["settings"].clone())
+        .map_err(|e| invalid("settings", e.to_string()))?;
+    let atlas = crate::atlas::unwrap(scene, &config)?;
+    let geometry = Geometry::new(scene, &atlas);
+    let mut pages = Vec::new();
+    for page in 0..atlas.page_count {
+        let path = dir.join(format!("lightmap_{page}.exr"));
+        let (w, h, values) = read_exr_rgb(&path)?;
+        if (w, h) != (atlas.width, atlas.height) {
+            return Err(Error::Invalid {
+                path,
+                location: format!("lightmap_{page}.exr"),
+                message: format!(
+                    "is {w}×{h} but this scene's atlas with the bake's settings is {}×{}: the bake is of another scene or version (bake again)",
+                    atlas.width, atlas.height
+                ),
+            });
+        }
+        pages.push(values);
+    }
+    Ok(BakedLightmaps {
+        geometry,
+        width: atlas.width,
+        height: atlas.height,
+        pages,
+        config,
+    })
+}
+
+/// Reads the first RGB(A) layer of an OpenEXR file as linear RGB.
+fn read_exr_rgb(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
+    use exr::prelude::*;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |resolution, _| {
+            (
+                resolution.width(),
+                vec![Vec3::ZERO; resolution.width() * resolution.height()],
+            )
+        },
+        |(w, pixels): &mut (usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            pixels[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
+        },
+    )
+    .map_err(|e| crate::Error::Invalid {
+        path: path.to_path_buf(),
+        location: "exr".into(),
+        message: e.to_string(),
+    })?;
+    let size = image.layer_data.size;
+    let (_, pixels) = image.layer_data.channel_data.pixels;
+    Ok((size.width() as u32, size.height() as u32, pixels))
+}
+
+/// Renders `width × height` pixels at `spp` stratified samples each.
+/// `advance` is called with the number of rows done.
+pub fn render(
+    tracer: &Tracer,
+    view: &View,
+    size: (u32, u32),
+    spp: u32,
+    integrator: Integrator,
+    seed: u64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Image {
+    let (width, height) = size;
+    let aspect = width as f32 / height as f32;
+    let spp = spp.max(1);
+    let rows: Vec<Vec<(Vec3, Vec3)>> = (0..height)
+        .into_par_iter()
+        .map(|y| {
+            let row = (0..width)
+                .map(|x| {
+                    let pixel = (y * width + x) as u64;
+                    let mut rng = Stream::new(seed, PURPOSE, pixel);
+                    let (mut sum, mut sq) = (Vec3::ZERO, Vec3::ZERO);
+                    for k in 0..spp {
+                        let j = stratified(k, spp, rng.next_vec2());
+                        let ndc = Vec2::new(
+                            2.0 * (x as f32 + j.x) / width as f32 - 1.0,
+                            1.0 - 2.0 * (y as f32 + j.y) / height as f32,
+                        );
+                        let dir = view.ray(ndc, aspect);
+                        let l = match integrator {
+                            Integrator::Path => tracer.radiance(view.eye, dir, &mut rng),
+                            Integrator::Bdpt => {
+                                super::bdpt::radiance(tracer, view.eye, dir, &mut rng)
+                            }
+                        };
+                        // A NaN or infinite sample would poison the pixel: drop it.
+                        let l = if l.is_finite() { l } else { Vec3::ZERO };
+                        sum += l;
+                        sq += l * l;
+                    }
+                    let n = spp as f32;
+                    let mean = sum / n;
+                    let var = ((sq / n - mean * mean).max(Vec3::ZERO)) / (n - 1.0).max(1.0);
+                    (mean, var)
+                })
+                .collect();
+            advance(1);
+            row
+        })
+        .collect();
+    let (pixels, variance) = rows.into_iter().flatten().unzip();
+    Image {
+        width,
+        height,
+        pixels,
+        variance,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn look_at_centre_ray_is_forward() {
+        let v = View::look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, 1.0);
+        assert!((v.ray(Vec2::ZERO, 1.5) - Vec3::NEG_Z).length() < 1e-6);
+        // The top edge of the film is yfov/2 above the axis.
+        let top = v.ray(Vec2::new(0.0, 1.0), 1.0);
+        assert!((top.dot(Vec3::NEG_Z).acos() - 0.5).abs() < 1e-5);
+        assert!(top.y > 0.0);
+    }
+}
