@@ -260,6 +260,51 @@ fn walk(
     }
 }
 
+/// Irradiance precomputed at a subset of the photons (Christensen 1999,
+/// "Faster Photon Map Global Illumination"): final-gather hits take the
+/// nearest precomputed value with a matching normal instead of a k-nearest
+/// search each.
+pub struct Precomputed {
+    points: Vec<(Vec3, Vec3)>,
+    values: Vec<Vec3>,
+    tree: ImmutableKdTree<f32, u32, 3, 32>,
+}
+
+impl Precomputed {
+    /// Estimates at every `stride`-th photon with `k` neighbours.
+    pub fn new(map: &PhotonMap, k: usize, stride: usize) -> Precomputed {
+        let points: Vec<(Vec3, Vec3)> = map
+            .photons
+            .iter()
+            .step_by(stride.max(1))
+            .map(|p| (p.p, p.n))
+            .collect();
+        let values = points
+            .par_iter()
+            .map(|&(p, n)| map.estimate(p, n, k))
+            .collect();
+        let xyz: Vec<[f32; 3]> = points.iter().map(|p| p.0.to_array()).collect();
+        Precomputed {
+            tree: ImmutableKdTree::new_from_slice(&xyz),
+            points,
+            values,
+        }
+    }
+
+    /// Irradiance / π of the nearest precomputed point whose normal matches
+    /// `n` (among the 8 nearest), else zero.
+    pub fn lookup(&self, p: Vec3, n: Vec3) -> Vec3 {
+        let Some(k) = NonZero::new(8.min(self.points.len())) else {
+            return Vec3::ZERO;
+        };
+        self.tree
+            .nearest_n::<SquaredEuclidean>(&p.to_array(), k)
+            .iter()
+            .find(|f| self.points[f.item as usize].1.dot(n) > NORMAL_COSINE)
+            .map_or(Vec3::ZERO, |f| self.values[f.item as usize])
+    }
+}
+
 impl PhotonMap {
     /// Irradiance / π at `p` (normal `n`) from the `k` nearest photons.
     pub fn estimate(&self, p: Vec3, n: Vec3, k: usize) -> Vec3 {
@@ -315,6 +360,8 @@ pub fn bake_texels(
         &|_| {},
     );
     let rays = config.final_gather;
+    // At most ~64 k precomputed points (each a k-nearest search).
+    let pre = Precomputed::new(&map, k, (map.photons.len() / 65536).max(4));
     let out: Vec<(Vec3, bool)> = (0..n)
         .into_par_iter()
         .map(|t| {
@@ -335,7 +382,7 @@ pub fn bake_texels(
                         let nh = if front { g.ng_ws[tri] } else { -g.ng_ws[tri] };
                         let q = g.point(hit.tri, hit.u, hit.v);
                         // Emitters and sky are in the direct light already.
-                        sum += albedo * map.estimate(q, nh, k);
+                        sum += albedo * pre.lookup(q, nh);
                     }
                     _ => {}
                 }

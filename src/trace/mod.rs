@@ -33,8 +33,9 @@ use rayon::prelude::*;
 /// Stream purpose id of reference-texel paths.
 const PURPOSE_TEXELS: u64 = 5;
 
-/// Longest chain of specular bounces followed before a path is cut.
-const MAX_SPECULAR: u32 = 16;
+/// Longest chain of specular bounces followed before a path is cut (a
+/// faceted glass sphere traps a few per cent of paths for over 16).
+const MAX_SPECULAR: u32 = 256;
 
 /// Lightmap pages to read at the hits of final-pass gather rays.
 #[derive(Clone, Copy, Debug)]
@@ -137,12 +138,23 @@ impl<'a> Tracer<'a> {
 
     /// Follows `origin + t·dir` through perfect mirrors and glass until it
     /// reaches a diffuse surface, the sky, or the back of a one-sided surface.
-    pub(crate) fn reach(&self, mut origin: Vec3, mut dir: Vec3, rng: &mut Stream) -> Reach {
+    /// Also returns the emission of the specular surfaces met on the way
+    /// (× the chain's throughput); `mis_from`, the diffuse point and normal
+    /// the ray left by cosine sampling, weights an emissive first hit
+    /// against light sampling (balance heuristic).
+    pub(crate) fn reach(
+        &self,
+        mut origin: Vec3,
+        mut dir: Vec3,
+        rng: &mut Stream,
+        mis_from: Option<(Vec3, Vec3)>,
+    ) -> (Reach, Vec3) {
         let g = self.geometry;
         let mut throughput = Vec3::ONE;
+        let mut glow = Vec3::ZERO;
         for bounce in 0..=MAX_SPECULAR {
             let Some(hit) = self.rays.closest_hit(origin, dir, f32::INFINITY) else {
-                return Reach::Sky(throughput);
+                return (Reach::Sky(throughput), glow);
             };
             let tri = hit.tri as usize;
             let m = g.material[tri];
@@ -151,27 +163,42 @@ impl<'a> Tracer<'a> {
             let front = ng.dot(dir) < 0.0;
             let p = g.point(hit.tri, hit.u, hit.v);
             let facing = if front { ng } else { -ng };
+            if material.specular != Specular::None && front && material.is_emissive() {
+                let le = self.scene.emission_at(m, g.uv0_at(hit.tri, hit.u, hit.v));
+                let w = match (bounce, mis_from, self.lights.emitter_index(hit.tri)) {
+                    (0, Some((from, n)), Some(k)) => {
+                        let p_b = n.dot(dir) / std::f32::consts::PI;
+                        let p_l = self.lights.pdf_solid_angle(g, k, from, p, ng);
+                        p_b / (p_b + p_l)
+                    }
+                    _ => 1.0,
+                };
+                glow += throughput * le * w;
+            }
             match material.specular {
                 Specular::None => {
                     if !front && !material.double_sided {
-                        return Reach::Back;
+                        return (Reach::Back, glow);
                     }
-                    return Reach::Diffuse(
-                        Landing {
-                            p,
-                            n: facing,
-                            tri: hit.tri,
-                            u: hit.u,
-                            v: hit.v,
-                            front,
-                        },
-                        throughput,
-                        bounce == 0,
+                    return (
+                        Reach::Diffuse(
+                            Landing {
+                                p,
+                                n: facing,
+                                tri: hit.tri,
+                                u: hit.u,
+                                v: hit.v,
+                                front,
+                            },
+                            throughput,
+                            bounce == 0,
+                        ),
+                        glow,
                     );
                 }
                 Specular::Mirror => {
                     if !front && !material.double_sided {
-                        return Reach::Back;
+                        return (Reach::Back, glow);
                     }
                     let tint = self.scene.albedo_at(m, g.uv0_at(hit.tri, hit.u, hit.v)).0;
                     throughput *= tint;
@@ -200,10 +227,10 @@ impl<'a> Tracer<'a> {
                 }
             }
             if throughput.max_element() <= 0.0 {
-                return Reach::Nothing;
+                return (Reach::Nothing, glow);
             }
         }
-        Reach::Nothing
+        (Reach::Nothing, glow)
     }
 
     /// Radiance arriving at `p` along −`dir` from a ray that leaves the
@@ -212,7 +239,8 @@ impl<'a> Tracer<'a> {
     /// could also have found. Returns (radiance, hit a back face first).
     fn gathered(&self, p: Vec3, n: Vec3, dir: Vec3, rng: &mut Stream, depth: u32) -> (Vec3, bool) {
         let g = self.geometry;
-        match self.reach(offset_ray_origin(p, n), dir, rng) {
+        let (reach, glow) = self.reach(offset_ray_origin(p, n), dir, rng, Some((p, n)));
+        let (l, back) = match reach {
             Reach::Sky(t) => (t * self.lights.sky, false),
             Reach::Back => (Vec3::ZERO, true),
             Reach::Nothing => (Vec3::ZERO, false),
@@ -238,7 +266,8 @@ impl<'a> Tracer<'a> {
                 l += albedo * self.outgoing_diffuse(&hit, albedo, rng, depth);
                 (t * l, false)
             }
-        }
+        };
+        (l + glow, back)
     }
 
     /// H/π at a diffuse hit reached after `depth` bounces: the lightmap in
@@ -313,7 +342,8 @@ impl<'a> Tracer<'a> {
     /// Radiance arriving at the camera along −`dir` from `origin`.
     pub fn radiance(&self, origin: Vec3, dir: Vec3, rng: &mut Stream) -> Vec3 {
         let g = self.geometry;
-        match self.reach(origin, dir, rng) {
+        let (reach, glow) = self.reach(origin, dir, rng, None);
+        glow + match reach {
             Reach::Sky(t) => t * self.lights.sky,
             Reach::Back | Reach::Nothing => Vec3::ZERO,
             Reach::Diffuse(hit, t, _) => {
