@@ -14,7 +14,9 @@
 
 use crate::form_factors::raycast::{Landing, Surfaces};
 use crate::geometry::Geometry;
-use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
+use crate::sampling::{
+    cosine_hemisphere, offset_ray_origin, shadow_ray, stratified, to_world, Stream,
+};
 use crate::scene::{Light, LightKind, Scene};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -281,7 +283,6 @@ pub fn direct_at(
         let shift = rng.next_vec2();
         for k in 0..samples {
             let (p, n) = points[k as usize];
-            let origin = offset_ray_origin(p, n);
             let Some(ls) = lights.sample(g, hammersley(k, samples, shift)) else {
                 break;
             };
@@ -296,7 +297,8 @@ pub fn direct_at(
                 continue;
             }
             rays += 1;
-            if !s.rays.unoccluded(origin, dir, dist * (1.0 - 1e-4)) {
+            let (so, sd, len) = shadow_ray(p, n, q, nq);
+            if !s.rays.unoccluded(so, sd, len) {
                 continue;
             }
             let le = s

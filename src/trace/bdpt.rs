@@ -15,7 +15,7 @@
 
 use super::Tracer;
 use crate::direct::punctual_irradiance;
-use crate::sampling::{cosine_hemisphere, offset_ray_origin, to_world, Stream};
+use crate::sampling::{cosine_hemisphere, offset_ray_origin, shadow_ray, to_world, Stream};
 use crate::scene::{LightKind, Specular};
 use glam::Vec3;
 use std::f32::consts::PI;
@@ -336,13 +336,17 @@ fn visible(tracer: &Tracer, a: &Vertex, b: &Vertex) -> bool {
     if dist <= 0.0 {
         return false;
     }
-    let dir = d / dist;
-    let origin = if a.has_normal() {
-        offset_ray_origin(a.p, if a.n.dot(dir) > 0.0 { a.n } else { -a.n })
-    } else {
-        a.p
+    let (origin, dir, len) = match (a.has_normal(), b.has_normal()) {
+        (true, true) => shadow_ray(a.p, a.n, b.p, b.n),
+        // A point light: nothing to avoid at its end.
+        (true, false) => {
+            let o = offset_ray_origin(a.p, if a.n.dot(d) > 0.0 { a.n } else { -a.n });
+            let e = b.p - o;
+            (o, e.normalize_or_zero(), e.length())
+        }
+        _ => (a.p, d / dist, dist),
     };
-    tracer.rays.unoccluded(origin, dir, dist * (1.0 - 1e-4))
+    tracer.rays.unoccluded(origin, dir, len)
 }
 
 /// Balance-heuristic weight of strategy (s, t) for the connected path

@@ -24,7 +24,9 @@ pub mod render;
 use crate::direct::{punctual_irradiance, Lights};
 use crate::geometry::Geometry;
 use crate::raycast::RayCaster;
-use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
+use crate::sampling::{
+    cosine_hemisphere, offset_ray_origin, shadow_ray, stratified, to_world, Stream,
+};
 use crate::scene::{Scene, Specular};
 use crate::texels::Texels;
 use glam::{Vec2, Vec3};
@@ -320,8 +322,10 @@ impl<'a> Tracer<'a> {
             let dir = d / dist;
             let cos_p = n.dot(dir);
             let cos_q = ls.normal.dot(-dir);
-            if cos_p > 0.0 && cos_q > 0.0 && self.rays.unoccluded(origin, dir, dist * (1.0 - 1e-4))
-            {
+            if cos_p > 0.0 && cos_q > 0.0 && {
+                let (o, sd, len) = shadow_ray(p, n, ls.point, ls.normal);
+                self.rays.unoccluded(o, sd, len)
+            } {
                 let le = self
                     .scene
                     .emission_at(g.material[ls.tri as usize], g.uv0_at(ls.tri, ls.u, ls.v));
