@@ -24,10 +24,22 @@ fn main() -> anyhow::Result<()> {
     // The lamp (in the plane y = 0.5483, centred at z = 0.2795) turned over
     // by R_x(180°) and lowered to y = 0.40, 15 cm under the ceiling.
     let flipped = serde_json::json!([
-        1.0, 0.0, 0.0, 0.0, //
-        0.0, -1.0, 0.0, 0.0, //
-        0.0, 0.0, -1.0, 0.0, //
-        0.0, 0.40 + 0.5483, 2.0 * 0.2795, 1.0
+        1.0,
+        0.0,
+        0.0,
+        0.0, //
+        0.0,
+        -1.0,
+        0.0,
+        0.0, //
+        0.0,
+        0.0,
+        -1.0,
+        0.0, //
+        0.0,
+        0.40 + 0.5483,
+        2.0 * 0.2795,
+        1.0
     ]);
     let dir = std::env::temp_dir().join(format!("radbake-bdpt-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
@@ -56,7 +68,8 @@ fn main() -> anyhow::Result<()> {
             let t = Instant::now();
             let img = render(&tracer, &view, (size, size), spp, integrator, 2, &|_| {});
             let secs = t.elapsed().as_secs_f64();
-            let var = img.variance.iter().map(|v| v.x as f64).sum::<f64>() / img.variance.len() as f64;
+            let var =
+                img.variance.iter().map(|v| v.x as f64).sum::<f64>() / img.variance.len() as f64;
             println!(
                 "{name:<17} {:<10} {spp:>5} {secs:>8.2} {:>10.5} {var:>12.4e} {:>12.4e}",
                 format!("{integrator:?}"),

@@ -114,7 +114,15 @@ pub fn shadow_ray(p: Vec3, np: Vec3, q: Vec3, nq: Vec3) -> (Vec3, Vec3, f32) {
     let b = offset_ray_origin(q, nq);
     let e = b - a;
     let len = e.length();
-    (a, if len > 0.0 { e / len } else { d.normalize_or_zero() }, len)
+    (
+        a,
+        if len > 0.0 {
+            e / len
+        } else {
+            d.normalize_or_zero()
+        },
+        len,
+    )
 }
 
 /// Moves a ray origin `p` off the surface with geometric normal `n` (pointing
