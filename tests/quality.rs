@@ -416,9 +416,8 @@ fn supersampling_antialiases_shadow_edges() {
 /// A 0.2 m emitter 10 cm under a receiver facing it (regression: shadow
 /// rays offset at their origin only hit the emitter's own triangle at
 /// distances under ~15 cm, and close lamps lit nothing). Texels within 3 cm
-/// of the centre read E × the point-to-rectangle view factor within 3 %
-/// (1024 samples each; before the fix they read 0), for the radiosity bake
-/// and for the path-traced reference.
+/// of the centre read E × the point-to-rectangle view factor (before the
+/// fix they read 0), for the radiosity bake and the path-traced reference.
 #[test]
 fn close_emitter_lights_its_neighbour() {
     let mut b = GltfBuilder::default();
@@ -454,7 +453,15 @@ fn close_emitter_lights_its_neighbour() {
             ..BakeConfig::default()
         };
         let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
-        let mut checked = 0;
+        // Per texel: 2 % for radiosity; 6 % for the path tracer, whose
+        // texels have a 1.5 % standard error at 1024 paths (its mean over
+        // the checked texels must still be within 1.5 %).
+        let tolerance = if method == radbake::config::Method::Radiosity {
+            0.02
+        } else {
+            0.06
+        };
+        let (mut checked, mut ratio) = (0, 0.0f64);
         for t in 0..bake.texels.len() {
             if bake.texels.instance[t] != recv {
                 continue;
@@ -465,8 +472,9 @@ fn close_emitter_lights_its_neighbour() {
             }
             let want = analytic::point_to_rectangle(p.x as f64, p.z as f64, 0.2, 0.2, 0.1);
             let got = bake.lightmaps.texel_values[t].x as f64;
+            ratio += got / want;
             assert!(
-                (got - want).abs() / want < 0.03,
+                (got - want).abs() / want < tolerance,
                 "{method:?}: texel at ({:.3}, {:.3}): {got} vs {want}",
                 p.x,
                 p.z
@@ -474,5 +482,10 @@ fn close_emitter_lights_its_neighbour() {
             checked += 1;
         }
         assert!(checked > 10, "{checked} texels checked");
+        let ratio = ratio / checked as f64;
+        assert!(
+            (ratio - 1.0).abs() < 0.015,
+            "{method:?}: mean ratio {ratio}"
+        );
     }
 }
