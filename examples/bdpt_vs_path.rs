@@ -22,7 +22,8 @@ fn main() -> anyhow::Result<()> {
     let text = std::fs::read_to_string(root.join("scenes/cornell_box.gltf"))?;
     let mut doc: serde_json::Value = serde_json::from_str(&text)?;
     // The lamp (in the plane y = 0.5483, centred at z = 0.2795) turned over
-    // by R_x(180°) and lowered to y = 0.40, 15 cm under the ceiling.
+    // by R_x(180°) and lowered to y = 0.52, 3 cm under the ceiling: the
+    // room is lit by a small hot spot.
     let flipped = serde_json::json!([
         1.0,
         0.0,
@@ -37,7 +38,7 @@ fn main() -> anyhow::Result<()> {
         -1.0,
         0.0, //
         0.0,
-        0.40 + 0.5483,
+        0.52 + 0.5483,
         2.0 * 0.2795,
         1.0
     ]);

@@ -151,7 +151,11 @@ fn run_render(args: &RenderArgs) -> Result<(), (u8, String)> {
     let bar = if args.quiet {
         ProgressBar::hidden()
     } else {
-        ProgressBar::new(args.size.1 as u64).with_style(
+        let passes = match integrator {
+            Integrator::Bdpt => render::BDPT_PASSES as u64,
+            Integrator::Path => 1,
+        };
+        ProgressBar::new(args.size.1 as u64 * passes).with_style(
             ProgressStyle::with_template(
                 "{msg:>13} [{bar:30}] {pos}/{len} rows {elapsed} (eta {eta})",
             )

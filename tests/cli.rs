@@ -499,3 +499,76 @@ fn fuzz_regressions() {
     let r = bake(&copy, &dir.join("out"), &[]);
     assert!(r.stderr.contains("texel lightmap limit"), "{}", r.stderr);
 }
+
+/// `radbake render`: reference and final pass write an EXR and a PNG;
+/// a bake folder of another scene is refused with exit code 1.
+#[test]
+fn render_reference_and_final_pass() {
+    let dir = temp_dir("cli-render");
+    let cornell = scene_path("cornell_box.gltf");
+    let exe = env!("CARGO_BIN_EXE_radbake");
+    let run = |args: &[&str]| {
+        std::process::Command::new(exe)
+            .args(args)
+            .output()
+            .expect("radbake runs")
+    };
+    let out = dir.join("ref.exr");
+    let r = run(&[
+        "render",
+        cornell.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--size",
+        "16x16",
+        "--spp",
+        "2",
+        "-q",
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(out.exists() && out.with_extension("png").exists());
+    let bake_dir = dir.join("bake");
+    let r = run(&[
+        "bake",
+        cornell.to_str().unwrap(),
+        "--out",
+        bake_dir.to_str().unwrap(),
+        "--preset",
+        "preview",
+        "-q",
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let out = dir.join("final.png");
+    let r = run(&[
+        "render",
+        cornell.to_str().unwrap(),
+        "--lightmaps",
+        bake_dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--size",
+        "16x16",
+        "--spp",
+        "2",
+        "-q",
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(out.exists());
+    // The plates' scene against the Cornell box's bake: the atlas differs.
+    let plates = scene_path("parallel_plates.gltf");
+    let r = run(&[
+        "render",
+        plates.to_str().unwrap(),
+        "--lightmaps",
+        bake_dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("lightmap_0.exr") && err.lines().count() == 1,
+        "{err}"
+    );
+}

@@ -5,9 +5,10 @@
 //! heuristic computed from forward and reverse area-measure pdfs.
 //!
 //! Scope: Lambertian surfaces, emissive triangles and point/spot lights as
-//! the finite lights that start light subpaths. The pinhole camera is never
-//! connected to (no t = 1 "light tracing" strategy; it is left out of the
-//! weights too, so they still sum to one). Light that only one strategy can
+//! the finite lights that start light subpaths. Every strategy with t ≥ 1
+//! is used: t = 1 connects light subpath vertices to the pinhole and splats
+//! them onto the film (light tracing), which is what resolves small bright
+//! spots lit by a small light. Light that only one strategy can
 //! carry keeps weight 1: the sky (camera paths that escape) and directional
 //! lights (a shadow ray from every camera vertex). Scenes with mirrors or
 //! glass are rendered by the unidirectional tracer instead (see
@@ -36,17 +37,12 @@ pub fn supports(tracer: &Tracer) -> bool {
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Kind {
-    Camera,
+    /// The pinhole: viewing direction and film area at unit distance.
+    Camera { forward: Vec3, film_area: f32 },
     /// A point on emitter `k` (index in `Lights::emitters`).
-    AreaLight {
-        k: usize,
-        tri: u32,
-        le: Vec3,
-    },
+    AreaLight { k: usize, tri: u32, le: Vec3 },
     /// Punctual light `i` (point or spot).
-    PointLight {
-        i: usize,
-    },
+    PointLight { i: usize },
     Surface {
         tri: u32,
         albedo: Vec3,
@@ -107,7 +103,16 @@ impl Vertex {
                 }
             }
             Kind::AreaLight { .. } | Kind::PointLight { .. } => self.pdf_light(next),
-            Kind::Camera => 0.0,
+            Kind::Camera { forward, film_area } => {
+                let w = (next.p - self.p).normalize_or_zero();
+                let cos = forward.dot(w);
+                if cos <= 0.0 {
+                    0.0
+                } else {
+                    // Uniform over the film: 1 / (A cos³θ) per steradian.
+                    self.convert(1.0 / (film_area * cos * cos * cos), next)
+                }
+            }
         }
     }
 
@@ -173,7 +178,7 @@ impl LightChoice {
                 None => 0.0,
             },
             Kind::PointLight { i } => self.point_probability(i),
-            Kind::Camera => 0.0,
+            Kind::Camera { .. } => 0.0,
         }
     }
 
@@ -363,54 +368,67 @@ fn mis_weight(
     if s + t == 2 {
         return 1.0;
     }
-    let mut lv: Vec<Vertex> = light[..s].to_vec();
-    let mut cv: Vec<Vertex> = camera[..t].to_vec();
-    if s == 1 {
-        lv[0] = sampled.expect("s = 1 uses a fresh light sample");
-    }
-    // Reverse densities at the connection.
-    let pt = cv[t - 1];
-    cv[t - 1].pdf_rev = if s > 0 {
-        lv[s - 1].pdf(&pt)
-    } else {
-        choice.pdf_origin(tracer, &pt)
+    // The connection's end vertices; for s = 1 the fresh light sample.
+    let pt = camera[t - 1];
+    let qs = match s {
+        0 => None,
+        1 => Some(sampled.expect("s = 1 uses a fresh light sample")),
+        _ => Some(light[s - 1]),
     };
-    if t >= 2 {
-        cv[t - 2].pdf_rev = if s > 0 {
-            pt.pdf(&camera[t - 2])
-        } else {
-            // pt is an emitter point emitting towards y_{t−2}.
-            let as_light = Vertex {
-                kind: Kind::AreaLight {
-                    k: 0,
-                    tri: 0,
-                    le: Vec3::ZERO,
-                },
-                ..pt
-            };
-            as_light.pdf_light(&camera[t - 2])
-        };
-    }
-    if s > 0 {
-        let qs = lv[s - 1];
-        lv[s - 1].pdf_rev = pt.pdf(&qs);
-        if s >= 2 {
-            lv[s - 2].pdf_rev = qs.pdf(&lv[s - 2]);
+    // Reverse densities at the connection (the rest are the walks' own);
+    // read through overrides instead of copying the subpaths.
+    let pt_rev = match qs {
+        Some(q) => q.pdf(&pt),
+        None => choice.pdf_origin(tracer, &pt),
+    };
+    let ptm_rev = match qs {
+        Some(_) if t >= 2 => pt.pdf(&camera[t - 2]),
+        // pt is an emitter point emitting towards y_{t−2}.
+        None if t >= 2 => Vertex {
+            kind: Kind::AreaLight {
+                k: 0,
+                tri: 0,
+                le: Vec3::ZERO,
+            },
+            ..pt
         }
-    }
+        .pdf_light(&camera[t - 2]),
+        _ => 0.0,
+    };
+    let qs_rev = qs.map_or(0.0, |q| pt.pdf(&q));
+    let qsm_rev = match qs {
+        Some(q) if s >= 2 => q.pdf(&light[s - 2]),
+        _ => 0.0,
+    };
+    let light_at = |i: usize| if s == 1 { qs.expect("s = 1") } else { light[i] };
     let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
     let mut sum = 0.0f32;
     let mut ri = 1.0f32;
-    // Shorter camera subpaths, down to t = 2 (no light tracing).
-    for i in (2..t).rev() {
-        ri *= remap(cv[i].pdf_rev) / remap(cv[i].pdf_fwd);
+    // Shorter camera subpaths, down to t = 1 (light tracing).
+    for i in (1..t).rev() {
+        let rev = if i == t - 1 {
+            pt_rev
+        } else if i + 2 == t {
+            ptm_rev
+        } else {
+            camera[i].pdf_rev
+        };
+        ri *= remap(rev) / remap(camera[i].pdf_fwd);
         sum += ri;
     }
     ri = 1.0;
     for i in (0..s).rev() {
-        ri *= remap(lv[i].pdf_rev) / remap(lv[i].pdf_fwd);
+        let v = light_at(i);
+        let rev = if i == s - 1 {
+            qs_rev
+        } else if i + 2 == s {
+            qsm_rev
+        } else {
+            v.pdf_rev
+        };
+        ri *= remap(rev) / remap(v.pdf_fwd);
         // A point light cannot be hit: its s' = 0 strategy does not exist.
-        let delta_light = i == 0 && matches!(lv[0].kind, Kind::PointLight { .. });
+        let delta_light = i == 0 && matches!(light_at(0).kind, Kind::PointLight { .. });
         if !delta_light {
             sum += ri;
         }
@@ -418,12 +436,56 @@ fn mis_weight(
     1.0 / (1.0 + sum)
 }
 
-/// Radiance arriving at the camera at `eye` along −`dir`, by BDPT.
-pub fn radiance(tracer: &Tracer, eye: Vec3, dir: Vec3, rng: &mut Stream) -> Vec3 {
-    let choice = LightChoice::new(tracer);
+/// A tracer prepared for BDPT (the light choice computed once).
+pub struct Bdpt<'t, 'a> {
+    tracer: &'t Tracer<'a>,
+    choice: LightChoice,
+}
+
+impl<'t, 'a> Bdpt<'t, 'a> {
+    /// Prepares `tracer`.
+    pub fn new(tracer: &'t Tracer<'a>) -> Self {
+        Bdpt {
+            tracer,
+            choice: LightChoice::new(tracer),
+        }
+    }
+
+    /// Radiance arriving at the camera of `view` along −`dir`, plus the
+    /// light-tracing (t = 1) contributions, pushed to `splats` as (film
+    /// point in [−1, 1]², value): each is to be added to the pixel it lands
+    /// in and divided by the samples per pixel (PBRT's splat film).
+    pub fn radiance(
+        &self,
+        view: &super::render::View,
+        aspect: f32,
+        dir: Vec3,
+        rng: &mut Stream,
+        splats: &mut Vec<(glam::Vec2, Vec3)>,
+    ) -> Vec3 {
+        radiance(self.tracer, &self.choice, view, aspect, dir, rng, splats)
+    }
+}
+
+/// Radiance arriving at the camera along −`dir`, by BDPT.
+fn radiance(
+    tracer: &Tracer,
+    choice: &LightChoice,
+    view: &super::render::View,
+    aspect: f32,
+    dir: Vec3,
+    rng: &mut Stream,
+    splats: &mut Vec<(glam::Vec2, Vec3)>,
+) -> Vec3 {
+    let eye = view.eye;
+    let film_area = 4.0 * view.tan_half_y * view.tan_half_y * aspect;
+    let cos0 = view.forward.dot(dir);
     // Camera subpath: the eye, then the walk (pinhole: β = 1 per sample).
     let mut camera = vec![Vertex {
-        kind: Kind::Camera,
+        kind: Kind::Camera {
+            forward: view.forward,
+            film_area,
+        },
         p: eye,
         n: Vec3::ZERO,
         beta: Vec3::ONE,
@@ -436,7 +498,7 @@ pub fn radiance(tracer: &Tracer, eye: Vec3, dir: Vec3, rng: &mut Stream) -> Vec3
         eye,
         dir,
         Vec3::ONE,
-        1.0,
+        1.0 / (film_area * cos0 * cos0 * cos0),
         rng,
         MAX_DEPTH + 2,
         true,
@@ -482,6 +544,33 @@ pub fn radiance(tracer: &Tracer, eye: Vec3, dir: Vec3, rng: &mut Stream) -> Vec3
                     false,
                 );
             }
+        }
+    }
+
+    // t = 1: light subpath vertices seen by the camera, splatted.
+    let cam = camera[0];
+    for s in 2..=light.len().min(MAX_DEPTH + 1) {
+        let qs = light[s - 1];
+        let d = eye - qs.p;
+        let dist2 = d.length_squared();
+        let w = d / dist2.sqrt();
+        let f_q = qs.f(&cam);
+        let cos_cam = view.forward.dot(-w);
+        if f_q == Vec3::ZERO || cos_cam <= 0.0 {
+            continue;
+        }
+        let Some(film) = view.project(qs.p, aspect) else {
+            continue;
+        };
+        if !visible(tracer, &qs, &cam) {
+            continue;
+        }
+        // β f |cos_q| cosθ / d² × W_e, W_e = 1 / (A cos⁴θ).
+        let we = 1.0 / (film_area * cos_cam.powi(4));
+        let c = qs.beta * f_q * (qs.n.dot(w).abs() * cos_cam / dist2) * we;
+        if c.max_element() > 0.0 {
+            let weight = mis_weight(tracer, choice, &light, &camera, None, s, 1);
+            splats.push((film, c * weight));
         }
     }
 
@@ -571,7 +660,7 @@ pub fn radiance(tracer: &Tracer, eye: Vec3, dir: Vec3, rng: &mut Stream) -> Vec3
             if contribution.max_element() <= 0.0 {
                 continue;
             }
-            l += contribution * mis_weight(tracer, &choice, &light, &camera, sampled, s, t);
+            l += contribution * mis_weight(tracer, choice, &light, &camera, sampled, s, t);
         }
     }
     l

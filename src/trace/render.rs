@@ -86,6 +86,19 @@ impl View {
         )
     }
 
+    /// The film point in [−1, 1]² (y up) where world point `p` is seen,
+    /// if it is in front of the camera and inside the frame.
+    pub fn project(&self, p: Vec3, aspect: f32) -> Option<Vec2> {
+        let d = p - self.eye;
+        let z = d.dot(self.forward);
+        if z <= 0.0 {
+            return None;
+        }
+        let x = d.dot(self.right) / (z * self.tan_half_y * aspect);
+        let y = d.dot(self.up) / (z * self.tan_half_y);
+        (x.abs() <= 1.0 && y.abs() <= 1.0).then_some(Vec2::new(x, y))
+    }
+
     /// Unit direction through film point `ndc` ∈ [−1, 1]² (y up) for an
     /// image of aspect ratio `aspect` = width / height.
     pub fn ray(&self, ndc: Vec2, aspect: f32) -> Vec3 {
@@ -253,8 +266,14 @@ fn read_exr_rgb(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
     Ok((size.width() as u32, size.height() as u32, pixels))
 }
 
+/// Independent passes a BDPT image is made of: the per-pixel variance of
+/// the mean comes from their spread (splatted light-tracing samples land in
+/// any pixel, so per-sample variances are not at hand).
+pub const BDPT_PASSES: u32 = 4;
+
 /// Renders `width × height` pixels at `spp` stratified samples each.
-/// `advance` is called with the number of rows done.
+/// `advance` is called with the number of rows done; a BDPT image counts
+/// its rows [`BDPT_PASSES`] times.
 pub fn render(
     tracer: &Tracer,
     view: &View,
@@ -265,8 +284,11 @@ pub fn render(
     advance: &(dyn Fn(u64) + Sync),
 ) -> Image {
     let (width, height) = size;
-    let aspect = width as f32 / height as f32;
     let spp = spp.max(1);
+    if integrator == Integrator::Bdpt {
+        return render_bdpt(tracer, view, size, spp, seed, advance);
+    }
+    let aspect = width as f32 / height as f32;
     let rows: Vec<Vec<(Vec3, Vec3)>> = (0..height)
         .into_par_iter()
         .map(|y| {
@@ -277,19 +299,8 @@ pub fn render(
                     let (mut sum, mut sq) = (Vec3::ZERO, Vec3::ZERO);
                     for k in 0..spp {
                         let j = stratified(k, spp, rng.next_vec2());
-                        let ndc = Vec2::new(
-                            2.0 * (x as f32 + j.x) / width as f32 - 1.0,
-                            1.0 - 2.0 * (y as f32 + j.y) / height as f32,
-                        );
-                        let dir = view.ray(ndc, aspect);
-                        let l = match integrator {
-                            Integrator::Path => tracer.radiance(view.eye, dir, &mut rng),
-                            Integrator::Bdpt => {
-                                super::bdpt::radiance(tracer, view.eye, dir, &mut rng)
-                            }
-                        };
-                        // A NaN or infinite sample would poison the pixel: drop it.
-                        let l = if l.is_finite() { l } else { Vec3::ZERO };
+                        let dir = view.ray(film_point(x, y, j, size), aspect);
+                        let l = finite(tracer.radiance(view.eye, dir, &mut rng));
                         sum += l;
                         sq += l * l;
                     }
@@ -304,6 +315,107 @@ pub fn render(
         })
         .collect();
     let (pixels, variance) = rows.into_iter().flatten().unzip();
+    Image {
+        width,
+        height,
+        pixels,
+        variance,
+    }
+}
+
+/// Film point in [−1, 1]² (y up) of pixel (x, y) at sub-pixel `j`.
+fn film_point(x: u32, y: u32, j: Vec2, (width, height): (u32, u32)) -> Vec2 {
+    Vec2::new(
+        2.0 * (x as f32 + j.x) / width as f32 - 1.0,
+        1.0 - 2.0 * (y as f32 + j.y) / height as f32,
+    )
+}
+
+/// A NaN or infinite sample would poison its pixel: dropped.
+fn finite(l: Vec3) -> Vec3 {
+    if l.is_finite() {
+        l
+    } else {
+        Vec3::ZERO
+    }
+}
+
+/// BDPT: [`BDPT_PASSES`] passes of ⌈spp / passes⌉ samples; rows in a fixed
+/// number of chunks, each with its own splat film, summed in chunk order
+/// (deterministic whatever the thread count).
+fn render_bdpt(
+    tracer: &Tracer,
+    view: &View,
+    size: (u32, u32),
+    spp: u32,
+    seed: u64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Image {
+    const CHUNKS: u32 = 8;
+    let (width, height) = size;
+    let aspect = width as f32 / height as f32;
+    let bdpt = super::bdpt::Bdpt::new(tracer);
+    let per = spp.div_ceil(BDPT_PASSES).max(1);
+    let n = (width * height) as usize;
+    let rows_per = height.div_ceil(CHUNKS);
+    let mut passes: Vec<Vec<Vec3>> = Vec::new();
+    for pass in 0..BDPT_PASSES {
+        let parts: Vec<(Vec<Vec3>, Vec<Vec3>)> = (0..CHUNKS)
+            .into_par_iter()
+            .map(|c| {
+                let mut film = vec![Vec3::ZERO; n];
+                let mut own = Vec::new();
+                let mut splats = Vec::new();
+                for y in c * rows_per..((c + 1) * rows_per).min(height) {
+                    for x in 0..width {
+                        let pixel = (y * width + x) as u64;
+                        let mut rng = Stream::new(seed, PURPOSE + 16 * (pass as u64 + 1), pixel);
+                        let mut sum = Vec3::ZERO;
+                        for k in 0..per {
+                            let j = stratified(k, per, rng.next_vec2());
+                            let dir = view.ray(film_point(x, y, j, size), aspect);
+                            splats.clear();
+                            sum += finite(bdpt.radiance(view, aspect, dir, &mut rng, &mut splats));
+                            for (f, v) in &splats {
+                                let px = (((f.x + 1.0) * 0.5 * width as f32) as u32).min(width - 1);
+                                let py =
+                                    (((1.0 - f.y) * 0.5 * height as f32) as u32).min(height - 1);
+                                film[(py * width + px) as usize] += finite(*v);
+                            }
+                        }
+                        own.push(sum);
+                    }
+                    advance(1);
+                }
+                (own, film)
+            })
+            .collect();
+        let mut image = Vec::with_capacity(n);
+        let mut film = vec![Vec3::ZERO; n];
+        for (own, f) in parts {
+            image.extend(own);
+            for (a, b) in film.iter_mut().zip(f) {
+                *a += b;
+            }
+        }
+        passes.push(
+            image
+                .into_iter()
+                .zip(film)
+                .map(|(a, b)| (a + b) / per as f32)
+                .collect(),
+        );
+    }
+    let k = BDPT_PASSES as f32;
+    let pixels: Vec<Vec3> = (0..n)
+        .map(|i| passes.iter().map(|p| p[i]).sum::<Vec3>() / k)
+        .collect();
+    let variance = (0..n)
+        .map(|i| {
+            let m = pixels[i];
+            passes.iter().map(|p| (p[i] - m) * (p[i] - m)).sum::<Vec3>() / (k * (k - 1.0))
+        })
+        .collect();
     Image {
         width,
         height,
