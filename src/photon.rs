@@ -315,16 +315,19 @@ impl PhotonMap {
             return Vec3::ZERO;
         };
         let found = self.tree.nearest_n::<SquaredEuclidean>(&p.to_array(), k);
-        let r2 = found.iter().map(|f| f.distance).fold(0.0f32, f32::max);
+        // The disc is the one the matching photons span: photons of other
+        // orientations (a wall meeting this floor) neither count nor widen it.
+        let (mut flux, mut r2) = (Vec3::ZERO, 0.0f32);
+        for f in &found {
+            let ph = &self.photons[f.item as usize];
+            if ph.n.dot(n) > NORMAL_COSINE {
+                flux += ph.flux;
+                r2 = r2.max(f.distance);
+            }
+        }
         if r2 <= 0.0 {
             return Vec3::ZERO;
         }
-        let flux: Vec3 = found
-            .iter()
-            .map(|f| &self.photons[f.item as usize])
-            .filter(|ph| ph.n.dot(n) > NORMAL_COSINE)
-            .map(|ph| ph.flux)
-            .sum();
         flux / (PI * r2) / PI
     }
 }
@@ -341,12 +344,27 @@ pub fn bake_texels(
     let k = config.photon_neighbours as usize;
     let n = s.texels.len();
     if config.final_gather == 0 {
-        let values: Vec<Vec3> = (0..n)
+        // Validity as in the final gather, from 16 rays per texel: texels
+        // inside or under geometry are filled from their neighbours.
+        const PROBES: u32 = 16;
+        let (values, valid): (Vec<Vec3>, Vec<bool>) = (0..n)
             .into_par_iter()
-            .map(|t| map.estimate(s.texels.p_ws[t], s.texels.n_ws[t], k))
-            .collect();
+            .map(|t| {
+                let mut rng = Stream::new(config.seed, PURPOSE_GATHER, t as u64);
+                let back = (0..PROBES)
+                    .filter(|&j| {
+                        let (p, ng) =
+                            s.sample_texel(t as u32, stratified(j, PROBES, rng.next_vec2()));
+                        let dir = to_world(cosine_hemisphere(rng.next_vec2()), ng);
+                        matches!(s.trace(offset_ray_origin(p, ng), dir).0, Landing::BackFace)
+                    })
+                    .count();
+                let valid = back as f32 <= crate::gather::BACKFACE_TOLERANCE * PROBES as f32;
+                (map.estimate(s.texels.p_ws[t], s.texels.n_ws[t], k), valid)
+            })
+            .unzip();
         advance(n as u64);
-        return (values, vec![true; n], config.photons);
+        return (values, valid, config.photons + n as u64 * PROBES as u64);
     }
     // Direct light as the radiosity bake computes it (every emitter sampled).
     let all = vec![true; s.scene.materials.len()];
