@@ -53,6 +53,8 @@ const VIEW_LIGHTMAP: u32 = 1u;
 const VIEW_ALBEDO: u32 = 2u;
 const VIEW_CHECKER: u32 = 3u;
 const VIEW_CHARTS: u32 = 4u;
+const VIEW_PATCHES: u32 = 5u;
+const VIEW_INVALID: u32 = 6u;
 
 const FLAG_BASE_TEXTURE: u32 = 1u;
 const FLAG_EMISSIVE_TEXTURE: u32 = 2u;

@@ -10,6 +10,9 @@
 @group(1) @binding(4) var emissive_sampler: sampler;
 @group(1) @binding(5) var lightmap_texture: texture_2d<f32>;
 @group(1) @binding(6) var lightmap_sampler: sampler;
+// The bake's debug map (`--debug-maps`): rgb patch colour, alpha 1 valid
+// texel, 0.5 invalid texel, 0 no texel (or no map: a transparent texel).
+@group(1) @binding(7) var debug_texture: texture_2d<f32>;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -53,6 +56,13 @@ fn lightmap_at(uv: vec2<f32>) -> vec3<f32> {
         lm = textureSampleLevel(lightmap_texture, lightmap_sampler, uv, 0.0);
     }
     return lm.rgb * material.lightmap_scale;
+}
+
+// The debug map's texel under atlas coordinate `uv` (nearest, no filtering).
+fn debug_at(uv: vec2<f32>) -> vec4<f32> {
+    let size = textureDimensions(debug_texture, 0);
+    let t = clamp(vec2<i32>(floor(uv * vec2<f32>(size))), vec2<i32>(0), vec2<i32>(size) - 1);
+    return textureLoad(debug_texture, t, 0);
 }
 
 @fragment
@@ -113,6 +123,25 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             }
             if border {
                 color = vec3<f32>(1.0, 0.02, 0.0);
+            }
+        }
+        case VIEW_PATCHES: {
+            let d = debug_at(atlas_uv);
+            let shade = tone_map(lit, globals.exposure, globals.tone_map);
+            if d.a > 0.0 {
+                color = mix(d.rgb, shade, 0.3);
+            } else {
+                // No texel here, or no debug map: magenta stripes.
+                color = select(shade * 0.3, vec3<f32>(1.0, 0.0, 1.0), fract(in.clip.x * 0.05 + in.clip.y * 0.05) < 0.5);
+            }
+        }
+        case VIEW_INVALID: {
+            let d = debug_at(atlas_uv);
+            color = tone_map(lit, globals.exposure, globals.tone_map) * 0.8;
+            if d.a > 0.25 && d.a < 0.75 {
+                color = vec3<f32>(1.0, 0.05, 0.0);
+            } else if textureDimensions(debug_texture, 0).x <= 1u {
+                color = select(color, vec3<f32>(1.0, 0.0, 1.0), fract(in.clip.x * 0.05 + in.clip.y * 0.05) < 0.5);
             }
         }
         default: {

@@ -144,6 +144,8 @@ pub struct BakeConfig {
     pub photons: u64,
     /// Nearest photons per density estimate (1..=4096).
     pub photon_neighbours: u32,
+    /// Also write `lightmap_<page>_debug.png` (patches and texel validity, for the preview's debug views).
+    pub debug_maps: bool,
 }
 
 impl Default for BakeConfig {
@@ -182,6 +184,7 @@ impl BakeConfig {
             path_samples: 1024,
             photons: 1 << 20,
             photon_neighbours: 128,
+            debug_maps: false,
         }
     }
 

@@ -98,6 +98,8 @@ pub struct Bake<'s> {
     pub gather_rays: u64,
     /// Texels found inside or under geometry (filled from their neighbours).
     pub invalid_texels: u64,
+    /// Validity per texel (false: inside or under geometry, filled).
+    pub texel_valid: Vec<bool>,
     /// Seam sample pairs stitched.
     pub seam_samples: u64,
     /// Mean |difference| across seams (RGB sum) before and after stitching.
@@ -535,6 +537,7 @@ pub fn bake<'s>(
         direct_rays,
         gather_rays,
         invalid_texels,
+        texel_valid: valid,
         seam_samples: seam_samples.len() as u64,
         seam_mismatch,
         lightmaps,

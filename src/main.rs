@@ -412,6 +412,9 @@ struct BakeArgs {
     /// Nearest photons per estimate with --method photon [default: 128].
     #[arg(long)]
     photon_neighbours: Option<u32>,
+    /// Also write lightmap_<page>_debug.png (patches, texel validity) for the preview's debug views.
+    #[arg(long)]
+    debug_maps: bool,
     /// Starting settings, below the config file and flags [default: medium].
     #[arg(long, value_enum)]
     preset: Option<Preset>,
@@ -484,6 +487,9 @@ impl BakeArgs {
             photons,
             photon_neighbours
         );
+        if self.debug_maps {
+            c.debug_maps = true;
+        }
         c.validate()?;
         Ok(c)
     }
@@ -658,6 +664,9 @@ fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
     let mut written =
         radbake::output::write_lightmaps(&args.out, &bake.lightmaps).map_err(lib_err)?;
     written.extend(radbake::output::write_extra_maps(&args.out, &bake).map_err(lib_err)?);
+    if config.debug_maps {
+        written.extend(radbake::output::write_debug_maps(&args.out, &bake).map_err(lib_err)?);
+    }
     written.extend(
         radbake::output::write_engine_outputs(
             &args.out,

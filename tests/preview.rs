@@ -35,7 +35,14 @@ fn baked_cornell() -> &'static Path {
     BAKED.get_or_init(|| {
         let dir = temp_dir("preview-bake");
         let out = Command::new(env!("CARGO_BIN_EXE_radbake"))
-            .args(["bake", "-q", "--texels-per-meter", "40", "--out"])
+            .args([
+                "bake",
+                "-q",
+                "--debug-maps",
+                "--texels-per-meter",
+                "40",
+                "--out",
+            ])
             .arg(&dir)
             .arg(scene_path("cornell_box.gltf"))
             .output()
@@ -338,6 +345,54 @@ fn headless_debug_views_and_timing() {
     let named = dir.join("named.png");
     headless(glb, &named, &["--size", "160x120", "--camera", "camera"]).unwrap();
     assert_eq!(lit.as_raw(), load_rgba(&named).as_raw());
+}
+
+/// The patch and validity views read the bake's `--debug-maps` output:
+/// patches in many colours; the floor texels under the blocks (inside
+/// geometry) in red; without the maps (the `.glb` alone) magenta stripes.
+#[test]
+fn patch_and_invalid_texel_views() {
+    let glb = baked_cornell();
+    assert!(glb.with_file_name("lightmap_0_debug.png").exists());
+    let dir = temp_dir("preview-debug-views");
+    let patches = dir.join("patches.png");
+    if headless(glb, &patches, &["--size", "160x160", "--view", "patches"]).is_none() {
+        return;
+    }
+    let colours: std::collections::HashSet<[u8; 3]> = load_rgba(&patches)
+        .pixels()
+        .map(|p| [p[0], p[1], p[2]])
+        .collect();
+    assert!(
+        colours.len() > 200,
+        "{} colours in the patch view",
+        colours.len()
+    );
+    let invalid = dir.join("invalid.png");
+    headless(glb, &invalid, &["--size", "160x160", "--view", "invalid"]).unwrap();
+    let red = load_rgba(&invalid)
+        .pixels()
+        .filter(|p| p[0] > 240 && p[1] < 80 && p[2] < 60)
+        .count();
+    assert!(red > 5, "{red} invalid-texel pixels");
+    // The .glb alone: no debug map next to it.
+    let alone = dir.join("alone.glb");
+    std::fs::copy(glb, &alone).unwrap();
+    let striped = dir.join("striped.png");
+    headless(
+        &alone,
+        &striped,
+        &["--size", "160x160", "--view", "patches"],
+    )
+    .unwrap();
+    let magenta = load_rgba(&striped)
+        .pixels()
+        .filter(|p| p[0] > 240 && p[1] < 30 && p[2] > 240)
+        .count();
+    assert!(
+        magenta > 1000,
+        "{magenta} magenta pixels without a debug map"
+    );
 }
 
 #[test]

@@ -223,6 +223,57 @@ pub fn write_extra_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
     Ok(written)
 }
 
+/// Writes `lightmap_<page>_debug.png` per page (RGBA8, not colour data):
+/// RGB a colour hashed from the texel's patch, alpha 255 for a valid texel,
+/// 128 for an invalid one (inside or under geometry, filled from its
+/// neighbours), 0 where there is no texel. The preview's `patches` and
+/// `invalid texels` views read it.
+///
+/// # Errors
+/// [`Error::Encode`] or [`Error::Io`].
+pub fn write_debug_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBuf>> {
+    let lm = &bake.lightmaps;
+    let texels = &bake.texels;
+    let mut patch_of = vec![u32::MAX; texels.len()];
+    for i in 0..bake.patches.len() {
+        for &t in bake.patches.texels_of(i) {
+            patch_of[t as usize] = i as u32;
+        }
+    }
+    let mut written = Vec::new();
+    for page in 0..lm.pages.len() {
+        let mut img = image::RgbaImage::new(lm.width, lm.height);
+        for t in 0..texels.len() {
+            if texels.page[t] as usize != page {
+                continue;
+            }
+            let [x, y] = texels.xy[t];
+            // SplitMix-style hash of the patch id to a bright colour.
+            let mut h = (patch_of[t] as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+            h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            h ^= h >> 31;
+            let c = |k: u32| 64 + ((h >> (8 * k)) & 0xff) as u8 / 4 * 3;
+            let alpha = if bake.texel_valid.get(t).copied().unwrap_or(true) {
+                255
+            } else {
+                128
+            };
+            img.put_pixel(x, y, image::Rgba([c(0), c(1), c(2), alpha]));
+        }
+        let path = out_dir.join(format!("lightmap_{page}_debug.png"));
+        write_atomic(&path, |tmp| {
+            img.save_with_format(tmp, image::ImageFormat::Png)
+                .map_err(|e| Error::Encode {
+                    path: path.clone(),
+                    message: e.to_string(),
+                })
+        })?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
 /// Writes `report.json` into `out_dir` (written last by the CLI, so its
 /// presence marks a finished bake).
 ///

@@ -39,16 +39,23 @@ pub enum ViewMode {
     Checker = 3,
     /// Chart borders / UV seams of `TEXCOORD_1` drawn in red over the lit scene.
     Charts = 4,
+    /// Each radiosity patch in its own colour (needs `bake --debug-maps`).
+    Patches = 5,
+    /// Texels found inside or under geometry (filled from neighbours) in
+    /// red over the lit scene (needs `bake --debug-maps`).
+    Invalid = 6,
 }
 
 impl ViewMode {
-    /// All views, in key order (1–5).
-    pub const ALL: [ViewMode; 5] = [
+    /// All views, in key order (1–7).
+    pub const ALL: [ViewMode; 7] = [
         ViewMode::Lit,
         ViewMode::Lightmap,
         ViewMode::Albedo,
         ViewMode::Checker,
         ViewMode::Charts,
+        ViewMode::Patches,
+        ViewMode::Invalid,
     ];
 
     /// Short name.
@@ -59,6 +66,8 @@ impl ViewMode {
             ViewMode::Albedo => "albedo",
             ViewMode::Checker => "texel checker",
             ViewMode::Charts => "chart borders",
+            ViewMode::Patches => "patches",
+            ViewMode::Invalid => "invalid texels",
         }
     }
 }

@@ -78,6 +78,9 @@ pub struct Model {
     pub materials: Vec<PreviewMaterial>,
     /// Lightmap pages (sRGB RGBA8).
     pub lightmaps: Vec<Image>,
+    /// Per page, the bake's `lightmap_<page>_debug.png` beside the `.glb`
+    /// when it was written (`radbake bake --debug-maps`).
+    pub debug_maps: Vec<Option<Image>>,
     /// World bounds of all vertices (min, max).
     pub bounds: (Vec3, Vec3),
 }
@@ -221,7 +224,23 @@ impl Model {
             .iter()
             .map(|&t| decode_texture(&scene, t))
             .collect::<Result<Vec<_>>>()?;
-        Ok(Self::build(scene, &moz, lightmaps))
+        // Debug maps are named after the page's texture (`lightmap_<page>`).
+        let debug_maps = pages
+            .iter()
+            .map(|&t| {
+                let name = scene.source.as_ref()?.json["textures"][t]["name"].as_str()?;
+                let file = path.parent()?.join(format!("{name}_debug.png"));
+                let img = image::open(&file).ok()?.to_rgba8();
+                Some(Image {
+                    width: img.width(),
+                    height: img.height(),
+                    rgba: img.into_raw(),
+                })
+            })
+            .collect();
+        let mut model = Self::build(scene, &moz, lightmaps);
+        model.debug_maps = debug_maps;
+        Ok(model)
     }
 
     /// Builds the model from an imported scene and its materials' lightmaps
@@ -344,6 +363,7 @@ impl Model {
             materials,
             lightmaps,
             bounds: (lo, hi),
+            debug_maps: Vec::new(),
         }
     }
 }

@@ -54,6 +54,18 @@ fn srgb_texture(
     height: u32,
     rgba: &[u8],
 ) -> wgpu::TextureView {
+    rgba8_texture(device, queue, label, (width, height), rgba, true)
+}
+
+/// An RGBA8 texture, sRGB-decoded on sampling or not (data maps).
+fn rgba8_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    label: &str,
+    (width, height): (u32, u32),
+    rgba: &[u8],
+    srgb: bool,
+) -> wgpu::TextureView {
     let size = wgpu::Extent3d {
         width,
         height,
@@ -65,7 +77,11 @@ fn srgb_texture(
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        format: if srgb {
+            wgpu::TextureFormat::Rgba8UnormSrgb
+        } else {
+            wgpu::TextureFormat::Rgba8Unorm
+        },
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
@@ -156,6 +172,7 @@ impl Renderer {
                 sampler_entry(4),
                 texture(5),
                 sampler_entry(6),
+                texture(7),
             ],
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -254,6 +271,26 @@ impl Renderer {
                 )
             })
             .collect();
+        // Debug maps (patches, validity; not colour data), and a
+        // transparent texel for "none".
+        let no_debug = rgba8_texture(device, queue, "no debug map", (1, 1), &[0; 4], false);
+        let debug_maps: Vec<Option<wgpu::TextureView>> = model
+            .debug_maps
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                d.as_ref().map(|d| {
+                    rgba8_texture(
+                        device,
+                        queue,
+                        &format!("debug{i}"),
+                        (d.width, d.height),
+                        &d.rgba,
+                        false,
+                    )
+                })
+            })
+            .collect();
         let material_groups = model
             .materials
             .iter()
@@ -271,6 +308,11 @@ impl Renderer {
                 let (base_view, base_sampler) = tex(m.base_texture);
                 let (emissive_view, emissive_sampler) = tex(m.emissive_texture);
                 let lightmap_view = m.lightmap.and_then(|p| lightmaps.get(p)).unwrap_or(&white);
+                let debug_view = m
+                    .lightmap
+                    .and_then(|p| debug_maps.get(p))
+                    .and_then(Option::as_ref)
+                    .unwrap_or(&no_debug);
                 device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some(&format!("material{i}")),
                     layout: &material_layout,
@@ -302,6 +344,10 @@ impl Renderer {
                         wgpu::BindGroupEntry {
                             binding: 6,
                             resource: wgpu::BindingResource::Sampler(&clamp),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 7,
+                            resource: wgpu::BindingResource::TextureView(debug_view),
                         },
                     ],
                 })

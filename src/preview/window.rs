@@ -21,7 +21,7 @@ use winit::window::{Window, WindowId};
 pub const HELP: &str = "\
 mouse: left drag orbit/look, right or middle drag pan, wheel zoom
 Tab: orbit <-> fly camera    W A S D: move (fly), Q/E: down/up, Shift: faster
-1 lit   2 lightmap   3 albedo   4 texel checker   5 chart borders
+1 lit  2 lightmap  3 albedo  4 texel checker  5 chart borders  6 patches  7 invalid texels
 B: bilinear/bicubic lightmap   T: tone map ACES/none   +/-: exposure   0: exposure 0
 F: reset camera   P: screenshot (preview_<n>.png)   H: help   Esc: quit";
 
@@ -153,13 +153,17 @@ impl App {
             | KeyCode::Digit2
             | KeyCode::Digit3
             | KeyCode::Digit4
-            | KeyCode::Digit5 => {
+            | KeyCode::Digit5
+            | KeyCode::Digit6
+            | KeyCode::Digit7 => {
                 let i = [
                     KeyCode::Digit1,
                     KeyCode::Digit2,
                     KeyCode::Digit3,
                     KeyCode::Digit4,
                     KeyCode::Digit5,
+                    KeyCode::Digit6,
+                    KeyCode::Digit7,
                 ]
                 .iter()
                 .position(|&k| k == code)
