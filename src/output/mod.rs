@@ -243,13 +243,13 @@ pub fn write_debug_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
     let mut written = Vec::new();
     for page in 0..lm.pages.len() {
         let mut img = image::RgbaImage::new(lm.width, lm.height);
-        for t in 0..texels.len() {
+        for (t, &patch) in patch_of.iter().enumerate() {
             if texels.page[t] as usize != page {
                 continue;
             }
             let [x, y] = texels.xy[t];
             // SplitMix-style hash of the patch id to a bright colour.
-            let mut h = (patch_of[t] as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut h = (patch as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
             h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
             h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
             h ^= h >> 31;
