@@ -299,6 +299,14 @@ impl BakeConfig {
         if self.sky.iter().any(|v| !v.is_finite() || *v < 0.0) {
             return bad("sky", "must be three finite numbers ≥ 0");
         }
+        if self.method != Method::Radiosity
+            && (self.ao_distance > 0.0 || self.directional != DirectionalMode::None)
+        {
+            return bad(
+                "method",
+                "AO and directional maps come from the radiosity bake's final gather: use method = \"radiosity\"",
+            );
+        }
         if self.path_samples < 1 {
             return bad("path_samples", "must be ≥ 1");
         }
