@@ -75,6 +75,16 @@ pub enum Method {
     Photon,
 }
 
+/// Where the rays of the form factors are cast.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Device {
+    /// CPU threads (obvhs CWBVH).
+    Cpu,
+    /// A wgpu compute shader (falls back to the CPU, with a warning, where no adapter exists).
+    Gpu,
+}
+
 /// Named starting points for the settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -144,6 +154,8 @@ pub struct BakeConfig {
     pub photons: u64,
     /// Nearest photons per density estimate (1..=4096).
     pub photon_neighbours: u32,
+    /// Where form-factor rays are cast (`gpu`: wgpu compute; ray-cast form factors only).
+    pub device: Device,
     /// Also write `lightmap_<page>_debug.png` (patches and texel validity, for the preview's debug views).
     pub debug_maps: bool,
 }
@@ -185,6 +197,7 @@ impl BakeConfig {
             photons: 1 << 20,
             photon_neighbours: 128,
             debug_maps: false,
+            device: Device::Cpu,
         }
     }
 

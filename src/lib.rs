@@ -32,6 +32,8 @@ pub mod error;
 pub mod form_factors;
 pub mod gather;
 pub mod geometry;
+#[cfg(feature = "preview")]
+pub mod gpu;
 pub mod incremental;
 pub mod lightmap;
 pub mod output;
@@ -210,6 +212,9 @@ pub fn bake<'s>(
                 if progressive { 0 } else { patches.len() as u64 },
             );
             let form_factors = (!progressive).then(|| match config.form_factors {
+                config::FormFactorMethod::Raycast if config.device == config::Device::Gpu => {
+                    gpu_form_factors(&surfaces, config, &advance, &mut warnings)
+                }
                 config::FormFactorMethod::Raycast => form_factors::raycast::compute(
                     &surfaces,
                     config.rays_per_patch,
@@ -546,6 +551,38 @@ pub fn bake<'s>(
         stages: timer.stages,
         warnings,
     })
+}
+
+/// Ray-cast form factors with the rays cast on the GPU ([`gpu`]); on the
+/// CPU, with a warning, where there is no adapter or the GPU fails.
+fn gpu_form_factors(
+    surfaces: &Surfaces,
+    config: &BakeConfig,
+    advance: &(dyn Fn(u64) + Sync),
+    warnings: &mut Vec<String>,
+) -> FormFactors {
+    #[cfg(feature = "preview")]
+    {
+        let result = gpu::GpuRayCaster::new(surfaces.geometry).and_then(|g| {
+            gpu::form_factors(surfaces, &g, config.rays_per_patch, config.seed, advance)
+                .map(|ff| (ff, g.adapter.clone()))
+        });
+        match result {
+            Ok((ff, adapter)) => {
+                warnings.push(format!("form factors cast on the GPU: {adapter}"));
+                return ff;
+            }
+            Err(e) => warnings.push(format!(
+                "device = \"gpu\": {e:#}; form factors computed on the CPU"
+            )),
+        }
+    }
+    #[cfg(not(feature = "preview"))]
+    warnings.push(
+        "device = \"gpu\" needs the `preview` feature (wgpu); form factors computed on the CPU"
+            .into(),
+    );
+    form_factors::raycast::compute(surfaces, config.rays_per_patch, config.seed, advance)
 }
 
 /// What the light-transport stage hands to the lightmap stage.

@@ -400,6 +400,9 @@ struct BakeArgs {
     /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
     #[arg(long, value_enum)]
     emitters: Option<EmitterSampling>,
+    /// Where form-factor rays are cast: cpu, or gpu (wgpu compute; CPU fallback with a warning) [default: cpu].
+    #[arg(long, value_enum)]
+    device: Option<radbake::config::Device>,
     /// Light transport: radiosity, or the pathtrace / photon references [default: radiosity].
     #[arg(long, value_enum)]
     method: Option<Method>,
@@ -485,7 +488,8 @@ impl BakeArgs {
             method,
             path_samples,
             photons,
-            photon_neighbours
+            photon_neighbours,
+            device
         );
         if self.debug_maps {
             c.debug_maps = true;

@@ -100,7 +100,8 @@ impl FormFactors {
 }
 
 impl FormFactorStats {
-    fn add(&mut self, o: &FormFactorStats) {
+    /// Adds `o`'s counts.
+    pub fn add(&mut self, o: &FormFactorStats) {
         self.rays += o.rays;
         self.escaped += o.escaped;
         self.back_faces += o.back_faces;

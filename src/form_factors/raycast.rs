@@ -144,35 +144,66 @@ pub fn compute(
 
 /// Row i of F, sorted by column.
 pub fn row(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> (Vec<(u32, f32)>, FormFactorStats) {
+    let rays = row_rays(s, i, n_rays, seed);
+    let hits: Vec<Option<Hit>> = rays
+        .iter()
+        .map(|&(o, d)| s.rays.closest_hit(o, d, f32::INFINITY))
+        .collect();
+    row_from_hits(s, &rays, &hits)
+}
+
+/// The `n_rays` rays (origin, unit direction) of row i: points spread
+/// over patch i by area (strata paired at random with the direction strata,
+/// Fisher–Yates), cosine-distributed stratified directions. Shared by the
+/// CPU and GPU paths, so both cast the same rays.
+pub fn row_rays(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> Vec<(Vec3, Vec3)> {
     let mut rng = Stream::new(seed, PURPOSE, i as u64);
-    let mut stats = FormFactorStats {
-        rays: n_rays as u64,
-        ..Default::default()
-    };
-    let mut hits: Vec<u32> = Vec::with_capacity(n_rays as usize);
-    // A random pairing of direction strata with area strata (Fisher–Yates).
     let mut area_strata: Vec<u32> = (0..n_rays).collect();
     for k in (1..n_rays as usize).rev() {
         area_strata.swap(k, rng.below(k as u32 + 1) as usize);
     }
-    for k in 0..n_rays {
-        let area_u = area_strata[k as usize] as f32 + rng.next_f32();
-        let (p, ng) = s.sample_patch(i, area_u / n_rays as f32, rng.next_vec2());
-        let dir = to_world(
-            cosine_hemisphere(stratified(k, n_rays, rng.next_vec2())),
-            ng,
-        );
-        match s.trace(offset_ray_origin(p, ng), dir).0 {
-            Landing::Texel(t) => hits.push(s.patches.of_texel[t as usize].0),
+    (0..n_rays)
+        .map(|k| {
+            let area_u = area_strata[k as usize] as f32 + rng.next_f32();
+            let (p, ng) = s.sample_patch(i, area_u / n_rays as f32, rng.next_vec2());
+            let dir = to_world(
+                cosine_hemisphere(stratified(k, n_rays, rng.next_vec2())),
+                ng,
+            );
+            (offset_ray_origin(p, ng), dir)
+        })
+        .collect()
+}
+
+/// Row i of F from its rays' closest hits: each ray landing on the front
+/// of patch j adds 1/N to Fᵢⱼ.
+pub fn row_from_hits(
+    s: &Surfaces,
+    rays: &[(Vec3, Vec3)],
+    hits: &[Option<Hit>],
+) -> (Vec<(u32, f32)>, FormFactorStats) {
+    let n_rays = rays.len().max(1);
+    let mut stats = FormFactorStats {
+        rays: rays.len() as u64,
+        ..Default::default()
+    };
+    let mut patches: Vec<u32> = Vec::with_capacity(rays.len());
+    for (&(_, dir), hit) in rays.iter().zip(hits) {
+        let landing = match hit {
+            Some(h) => s.land(h.tri, h.u, h.v, dir),
+            None => Landing::Escaped,
+        };
+        match landing {
+            Landing::Texel(t) => patches.push(s.patches.of_texel[t as usize].0),
             Landing::BackFace => stats.back_faces += 1,
             Landing::Unmapped => stats.unmapped += 1,
             Landing::Escaped => stats.escaped += 1,
         }
     }
-    hits.sort_unstable();
+    patches.sort_unstable();
     let w = 1.0 / n_rays as f32;
     let mut out: Vec<(u32, f32)> = Vec::new();
-    for j in hits {
+    for j in patches {
         match out.last_mut() {
             Some((c, f)) if *c == j => *f += w,
             _ => out.push((j, w)),
