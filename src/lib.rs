@@ -465,7 +465,8 @@ pub fn bake<'s>(
 
 /// Which materials' emission is sampled as direct light (per
 /// [`config::EmitterSampling`]); the rest enters the radiosity solve.
-fn direct_sampled_materials(
+/// Public for the benchmarks, which run single stages.
+pub fn direct_sampled_materials(
     scene: &Scene,
     geometry: &Geometry,
     mode: config::EmitterSampling,
