@@ -88,7 +88,7 @@ fn check_chart_extent(scene: &Scene, scales: &[Vec<f32>], density: f32) -> Resul
                 .map(|e| e.length())
                 .fold(0.0f32, f32::max);
             let texels = edge * scale * density;
-            if !(texels <= MAX_CHART_TEXELS) {
+            if texels.is_nan() || texels > MAX_CHART_TEXELS {
                 return Err(Error::Limit(format!(
                     "meshes[{}].primitives[{}] (`{}`): a triangle with a {:.3e} m edge is {:.3e} texels long at {density} texels/m, over the {MAX_CHART_TEXELS}-texel lightmap limit",
                     mesh.gltf_index,
