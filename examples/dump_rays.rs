@@ -40,6 +40,9 @@ struct Args {
     /// Timed runs of each measurement (the best is reported).
     #[arg(long, default_value_t = 3)]
     repeat: u32,
+    /// obvhs build preset: fastest, very-fast, fast, medium (radbake's), slow or very-slow.
+    #[arg(long, default_value = "medium")]
+    bvh: String,
     /// Output file.
     #[arg(long, short, default_value = "rays.bin")]
     out: PathBuf,
@@ -64,7 +67,17 @@ fn main() -> anyhow::Result<()> {
     };
     let geometry = common::world_geometry(&scene);
     let t = Instant::now();
-    let caster = RayCaster::new(&scene, &geometry);
+    use obvhs::BvhBuildParams as P;
+    let params = match args.bvh.as_str() {
+        "fastest" => P::fastest_build(),
+        "very-fast" => P::very_fast_build(),
+        "fast" => P::fast_build(),
+        "medium" => P::medium_build(),
+        "slow" => P::slow_build(),
+        "very-slow" => P::very_slow_build(),
+        other => anyhow::bail!("unknown --bvh preset `{other}`"),
+    };
+    let caster = RayCaster::with_params(&scene, &geometry, params);
     let build = t.elapsed().as_secs_f64();
     let closest = common::surface_rays(&geometry, args.rays, common::SEED);
     let shadow = common::shadow_rays(&geometry, args.rays, common::SEED);
@@ -148,9 +161,10 @@ fn main() -> anyhow::Result<()> {
     let hits = hit_t.iter().filter(|t| t.is_finite()).count();
     let blocked = occluded.iter().filter(|o| **o == 1).count();
     println!(
-        "{}: {} triangles (BVH built in {:.3} s), {} closest-hit rays ({} hit), {} occlusion rays ({} occluded)",
+        "{}: {} triangles ({} BVH built in {:.3} s), {} closest-hit rays ({} hit), {} occlusion rays ({} occluded)",
         args.out.display(),
         geometry.len(),
+        args.bvh,
         build,
         n,
         hits,
