@@ -604,7 +604,8 @@ struct Solved {
 
 /// Which materials' emission is sampled as direct light (per
 /// [`config::EmitterSampling`]); the rest enters the radiosity solve.
-fn direct_sampled_materials(
+/// Public for the benchmarks, which run single stages.
+pub fn direct_sampled_materials(
     scene: &Scene,
     geometry: &Geometry,
     mode: config::EmitterSampling,
@@ -730,6 +731,9 @@ impl Bake<'_> {
                 patches: self.patches.len() as u64,
                 nonzeros: self.form_factors.as_ref().map_or(0, |f| f.nnz() as u64),
                 rays: ff.rays + self.direct_rays + self.gather_rays,
+                rays_form_factors: ff.rays,
+                rays_direct: self.direct_rays,
+                rays_gather: self.gather_rays,
                 invalid_texels: self.invalid_texels,
                 seam_samples: self.seam_samples,
                 seam_mismatch: self.seam_mismatch,

@@ -439,6 +439,9 @@ struct BakeArgs {
     /// Also print per-stage times and counters.
     #[arg(long, short)]
     verbose: bool,
+    /// After the bake, print a table of per-stage times, rays, rays/s and peak memory (stderr).
+    #[arg(long)]
+    stats: bool,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -694,6 +697,9 @@ fn run_bake(args: &BakeArgs) -> Result<(), (u8, String)> {
         if let Ok(counts) = serde_json::to_string_pretty(&report.counts) {
             eprintln!("{counts}");
         }
+    }
+    if args.stats {
+        eprint!("{}", report.stats_table(radbake::report::peak_rss_bytes()));
     }
     if !args.quiet {
         for w in &report.warnings {

@@ -143,6 +143,12 @@ pub struct RayCaster {
 impl RayCaster {
     /// Builds the BVH over `geometry` (obvhs medium build preset).
     pub fn new(scene: &Scene, geometry: &Geometry) -> RayCaster {
+        Self::with_params(scene, geometry, BvhBuildParams::medium_build())
+    }
+
+    /// Builds the BVH over `geometry` with obvhs build settings `params`
+    /// (for the benchmarks, which compare presets).
+    pub fn with_params(scene: &Scene, geometry: &Geometry, params: BvhBuildParams) -> RayCaster {
         let tris: Vec<Triangle> = geometry
             .p_ws
             .iter()
@@ -152,11 +158,8 @@ impl RayCaster {
                 v2: p[2].into(),
             })
             .collect();
-        let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
-            &tris,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
-        );
+        let bvh =
+            obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, params, &mut Duration::default());
         let cutouts = Cutouts::new(scene);
         let ids: Vec<u32> = bvh.primitive_indices.clone();
         let ordered: Vec<Tri> = ids

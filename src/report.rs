@@ -57,6 +57,12 @@ pub struct Counts {
     pub nonzeros: u64,
     /// Rays cast (all stages).
     pub rays: u64,
+    /// Rays cast for form factors (by the solve, for progressive refinement).
+    pub rays_form_factors: u64,
+    /// Rays cast for direct light (shadow and hemisphere rays).
+    pub rays_direct: u64,
+    /// Rays cast by the final gather.
+    pub rays_gather: u64,
     /// Form-factor rays that left the scene.
     pub rays_escaped: u64,
     /// Form-factor rays that hit the back of a one-sided surface.
@@ -133,4 +139,90 @@ pub struct Report {
     pub instances: Vec<InstanceReport>,
     /// Non-fatal problems.
     pub warnings: Vec<String>,
+}
+
+/// Peak resident memory of this process in bytes (`VmHWM` in
+/// `/proc/self/status`); `None` where there is no such file (not Linux).
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// `n` with an SI prefix: 1234567 → "1.23 M".
+fn si(n: f64) -> String {
+    match n {
+        n if n >= 1e9 => format!("{:.2} G", n / 1e9),
+        n if n >= 1e6 => format!("{:.2} M", n / 1e6),
+        n if n >= 1e3 => format!("{:.1} k", n / 1e3),
+        n => format!("{n:.0}"),
+    }
+}
+
+impl Report {
+    /// Rays cast in `stage` (form factors, direct light, final gather; the
+    /// form factors of progressive refinement are cast by the solve).
+    pub fn stage_rays(&self, stage: &str) -> u64 {
+        let c = &self.counts;
+        let progressive = self.settings.solver == crate::config::Solver::Progressive;
+        match stage {
+            "form_factors" if !progressive => c.rays_form_factors,
+            "solve" if progressive => c.rays_form_factors,
+            "direct" => c.rays_direct,
+            "final_gather" => c.rays_gather,
+            _ => 0,
+        }
+    }
+
+    /// A compact table for people (`radbake bake --stats`): per-stage wall
+    /// time, rays and rays/s, the total, then the counters and `peak_rss`
+    /// (bytes, when known).
+    pub fn stats_table(&self, peak_rss: Option<u64>) -> String {
+        use std::fmt::Write as _;
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "{:<13} {:>9} {:>7} {:>10} {:>10}",
+            "stage", "time (s)", "share", "rays", "rays/s"
+        );
+        let total: f64 = self.stages.iter().map(|s| s.seconds).sum();
+        let mut row = |name: &str, seconds: f64, rays: u64| {
+            let share = if total > 0.0 {
+                100.0 * seconds / total
+            } else {
+                0.0
+            };
+            let (r, rate) = if rays > 0 {
+                (si(rays as f64), si(rays as f64 / seconds.max(1e-9)))
+            } else {
+                (String::new(), String::new())
+            };
+            let line = format!("{name:<13} {seconds:>9.3} {share:>6.1}% {r:>10} {rate:>10}");
+            let _ = writeln!(out, "{}", line.trim_end());
+        };
+        for s in &self.stages {
+            row(&s.stage, s.seconds, self.stage_rays(&s.stage));
+        }
+        row("total", total, self.counts.rays);
+        let c = &self.counts;
+        let _ = write!(
+            out,
+            "triangles {} ({} instances) · texels {} ({} invalid) · patches {} · non-zeros of F {} · ",
+            c.triangles, c.instances, c.texels, c.invalid_texels, c.patches, si(c.nonzeros as f64)
+        );
+        if c.shots > 0 {
+            let _ = write!(out, "shots {} · ", c.shots);
+        } else {
+            let _ = write!(out, "iterations {} · ", c.iterations);
+        }
+        let _ = write!(out, "residual {:.1e}", c.residual);
+        match peak_rss {
+            Some(b) => {
+                let _ = writeln!(out, " · peak memory {:.0} MB", b as f64 / 1e6);
+            }
+            None => out.push('\n'),
+        }
+        out
+    }
 }

@@ -179,6 +179,44 @@ fn help_documents_flags() {
 }
 
 #[test]
+fn stats_prints_stages_rays_and_peak_memory() {
+    let dir = temp_dir("cli-stats");
+    let r = bake(
+        &scene_path("cornell_box.gltf"),
+        &dir.join("out"),
+        &["--stats", "-q", "--final-gather", "16"],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    for needle in [
+        "rays/s",
+        "form_factors",
+        "final_gather",
+        "total",
+        "texels",
+        "iterations",
+    ] {
+        assert!(r.stderr.contains(needle), "{needle} missing:\n{}", r.stderr);
+    }
+    if cfg!(target_os = "linux") {
+        assert!(r.stderr.contains("peak memory"), "{}", r.stderr);
+    }
+    // The final gather's rays: 16 per texel, on its own line.
+    let report: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("out/report.json")).unwrap()).unwrap();
+    let c = &report["counts"];
+    assert_eq!(
+        c["rays_gather"].as_u64().unwrap(),
+        16 * c["texels"].as_u64().unwrap()
+    );
+    assert_eq!(
+        c["rays"].as_u64().unwrap(),
+        c["rays_form_factors"].as_u64().unwrap()
+            + c["rays_direct"].as_u64().unwrap()
+            + c["rays_gather"].as_u64().unwrap()
+    );
+}
+
+#[test]
 fn glb_with_bin_chunk_bakes() {
     let dir = temp_dir("cli-glb");
     let path = dir.join("plates.glb");

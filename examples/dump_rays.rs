@@ -1,0 +1,185 @@
+//! Writes a scene's world triangles and a seeded set of incoherent rays to a
+//! binary file, with radbake's (obvhs) answers, and measures obvhs's
+//! closest-hit and occlusion rays/s on them (one thread and all threads).
+//! `tests/benches/embree_compare.py` casts the same rays with Embree.
+//!
+//!     cargo run --release --example dump_rays -- [scene.glb] --out rays.bin
+//!     python3 tests/benches/embree_compare.py rays.bin
+//!
+//! Without a scene, the generated level of `--triangles` (as
+//! `examples/gen_level.rs` writes it) is used.
+//!
+//! File layout (little-endian): `b"RBRAYS01"`; u32 triangles, closest-hit
+//! rays, occlusion rays, rayon threads; f64 obvhs rays/s: closest-hit on 1
+//! and on all threads, occlusion on 1 and on all threads; f32 triangle
+//! corners [n][3][3]; closest-hit rays
+//! then occlusion rays, f32 [n][7] (origin, unit direction, tmax; tmax is
+//! +∞ for closest-hit rays); obvhs's hit distance per closest-hit ray, f32
+//! (+∞ for a miss); obvhs's occlusion per occlusion ray, u8 (1 = occluded).
+
+#[path = "../tests/benches/common/mod.rs"]
+mod common;
+
+use clap::Parser;
+use radbake::raycast::RayCaster;
+use rayon::prelude::*;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(about = "Dump a scene's triangles and incoherent rays; time obvhs on them")]
+struct Args {
+    /// The scene (.gltf/.glb); the generated level when left out.
+    scene: Option<PathBuf>,
+    /// Triangles of the generated level (without a scene).
+    #[arg(long, default_value_t = 1_000_000)]
+    triangles: u64,
+    /// Rays of each kind (closest-hit and occlusion).
+    #[arg(long, default_value_t = 1 << 18)]
+    rays: usize,
+    /// Timed runs of each measurement (the best is reported).
+    #[arg(long, default_value_t = 3)]
+    repeat: u32,
+    /// obvhs build preset: fastest, very-fast, fast, medium (radbake's), slow or very-slow.
+    #[arg(long, default_value = "medium")]
+    bvh: String,
+    /// Output file.
+    #[arg(long, short, default_value = "rays.bin")]
+    out: PathBuf,
+}
+
+/// Best of `repeat` runs of `f`, in rays per second.
+fn rate(repeat: u32, rays: usize, mut f: impl FnMut()) -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..repeat.max(1) {
+        let t = Instant::now();
+        f();
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    rays as f64 / best
+}
+
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
+    let scene = match &args.scene {
+        Some(path) => radbake::scene::load(path, &Default::default())?,
+        None => common::level_scene(args.triangles),
+    };
+    let geometry = common::world_geometry(&scene);
+    let t = Instant::now();
+    use obvhs::BvhBuildParams as P;
+    let params = match args.bvh.as_str() {
+        "fastest" => P::fastest_build(),
+        "very-fast" => P::very_fast_build(),
+        "fast" => P::fast_build(),
+        "medium" => P::medium_build(),
+        "slow" => P::slow_build(),
+        "very-slow" => P::very_slow_build(),
+        other => anyhow::bail!("unknown --bvh preset `{other}`"),
+    };
+    let caster = RayCaster::with_params(&scene, &geometry, params);
+    let build = t.elapsed().as_secs_f64();
+    let closest = common::surface_rays(&geometry, args.rays, common::SEED);
+    let shadow = common::shadow_rays(&geometry, args.rays, common::SEED);
+
+    // The answers, then the timings.
+    let hit_t: Vec<f32> = (0..closest.len())
+        .into_par_iter()
+        .map(|i| {
+            caster
+                .closest_hit(closest.origin[i], closest.dir[i], closest.tmax[i])
+                .map_or(f32::INFINITY, |h| h.t)
+        })
+        .collect();
+    let occluded: Vec<u8> = (0..shadow.len())
+        .into_par_iter()
+        .map(|i| u8::from(!caster.unoccluded(shadow.origin[i], shadow.dir[i], shadow.tmax[i])))
+        .collect();
+    let threads = rayon::current_num_threads();
+    let n = args.rays;
+    let sink = |v: u64| {
+        std::hint::black_box(v);
+    };
+    let closest_one = |i: usize| {
+        caster
+            .closest_hit(closest.origin[i], closest.dir[i], closest.tmax[i])
+            .is_some() as u64
+    };
+    let occluded_one =
+        |i: usize| caster.unoccluded(shadow.origin[i], shadow.dir[i], shadow.tmax[i]) as u64;
+    let c1 = rate(args.repeat, n, || sink((0..n).map(closest_one).sum()));
+    let cn = rate(args.repeat, n, || {
+        sink(
+            (0..n)
+                .into_par_iter()
+                .with_min_len(256)
+                .map(closest_one)
+                .sum(),
+        )
+    });
+    let o1 = rate(args.repeat, n, || sink((0..n).map(occluded_one).sum()));
+    let on = rate(args.repeat, n, || {
+        sink(
+            (0..n)
+                .into_par_iter()
+                .with_min_len(256)
+                .map(occluded_one)
+                .sum(),
+        )
+    });
+
+    // The file.
+    let mut bytes: Vec<u8> = Vec::new();
+    bytes.extend_from_slice(b"RBRAYS01");
+    for v in [geometry.len(), closest.len(), shadow.len(), threads] {
+        bytes.extend_from_slice(&(v as u32).to_le_bytes());
+    }
+    for r in [c1, cn, o1, on] {
+        bytes.extend_from_slice(&r.to_le_bytes());
+    }
+    let f32s = |bytes: &mut Vec<u8>, v: &[f32]| {
+        for x in v {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+    };
+    for p in &geometry.p_ws {
+        for c in p {
+            f32s(&mut bytes, &c.to_array());
+        }
+    }
+    for r in [&closest, &shadow] {
+        for i in 0..r.len() {
+            f32s(&mut bytes, &r.origin[i].to_array());
+            f32s(&mut bytes, &r.dir[i].to_array());
+            f32s(&mut bytes, &[r.tmax[i]]);
+        }
+    }
+    f32s(&mut bytes, &hit_t);
+    bytes.extend_from_slice(&occluded);
+    radbake::output::write_bytes_atomic(&args.out, &bytes)?;
+
+    let hits = hit_t.iter().filter(|t| t.is_finite()).count();
+    let blocked = occluded.iter().filter(|o| **o == 1).count();
+    println!(
+        "{}: {} triangles ({} BVH built in {:.3} s), {} closest-hit rays ({} hit), {} occlusion rays ({} occluded)",
+        args.out.display(),
+        geometry.len(),
+        args.bvh,
+        build,
+        n,
+        hits,
+        n,
+        blocked
+    );
+    println!(
+        "obvhs closest-hit: {:.2} M rays/s on 1 thread, {:.2} M rays/s on {threads} threads",
+        c1 / 1e6,
+        cn / 1e6
+    );
+    println!(
+        "obvhs occlusion:   {:.2} M rays/s on 1 thread, {:.2} M rays/s on {threads} threads",
+        o1 / 1e6,
+        on / 1e6
+    );
+    Ok(())
+}

@@ -1,0 +1,63 @@
+//! Final gather of the Cornell box (medium preset: 128 rays per texel) from
+//! its first-pass lightmap; throughput in texels.
+//!
+//!     cargo bench --bench gather
+
+mod common;
+
+use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
+use glam::Vec3;
+use radbake::form_factors::raycast::Surfaces;
+use radbake::raycast::RayCaster;
+use radbake::{gather, lightmap};
+
+fn final_gather(c: &mut Criterion) {
+    let scene = common::cornell();
+    let bake = common::cornell_bake(&scene);
+    let rays = RayCaster::new(&scene, &bake.geometry);
+    let s = Surfaces {
+        scene: &scene,
+        geometry: &bake.geometry,
+        texels: &bake.texels,
+        patches: &bake.patches,
+        rays: &rays,
+    };
+    let indirect: Vec<Vec3> = bake
+        .solution
+        .irradiance
+        .iter()
+        .zip(&bake.patch_direct)
+        .map(|(h, d)| *h - *d)
+        .collect();
+    let first = lightmap::first_pass(&bake.texels, &bake.patches, &bake.direct, &indirect);
+    let sampled = radbake::direct_sampled_materials(&scene, &bake.geometry, bake.config.emitters);
+    let extras = gather::Extras {
+        directional: false,
+        sky: Vec3::from(bake.config.sky),
+        ao_distance: 0.0,
+    };
+    let config = &bake.config;
+    let mut group = c.benchmark_group("final_gather_cornell");
+    group.throughput(Throughput::Elements(bake.texels.len() as u64));
+    group.bench_function(format!("{}_rays_per_texel", config.final_gather), |b| {
+        b.iter(|| {
+            gather::gather(
+                black_box(&s),
+                &first,
+                &sampled,
+                config.final_gather,
+                config.seed,
+                extras,
+                &|_| {},
+            )
+        })
+    });
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = common::criterion();
+    targets = final_gather
+}
+criterion_main!(benches);
