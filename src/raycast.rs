@@ -202,48 +202,57 @@ impl RayCaster {
         Some((t, u, v))
     }
 
-    /// The obvhs ray for `origin + t·dir`, `t ∈ [0, tmax]`, started
-    /// [`BACK_OFF`] behind `origin` with `tmin = BACK_OFF`: the same segment,
-    /// but every node box on it is left after obvhs's box-entry clamp.
-    fn ray(origin: Vec3, dir: Vec3, tmax: f32) -> Ray {
+    /// The rays for `origin + t·dir`, `t ∈ [0, tmax]`: the one obvhs
+    /// traverses, started [`BACK_OFF`] behind `origin` (so every node box on
+    /// the segment is left after obvhs's box-entry clamp), and the exact one
+    /// the triangles are tested against (so hit distances and barycentrics
+    /// keep full precision; distances are handed to obvhs shifted by
+    /// `BACK_OFF`, in its ray's terms).
+    fn rays(origin: Vec3, dir: Vec3, tmax: f32) -> (Ray, Ray) {
         let dir = positive_zeros(dir);
-        Ray::new(
-            (origin - BACK_OFF * dir).into(),
-            dir.into(),
-            BACK_OFF,
-            tmax + BACK_OFF,
+        (
+            Ray::new(
+                (origin - BACK_OFF * dir).into(),
+                dir.into(),
+                BACK_OFF,
+                tmax + BACK_OFF,
+            ),
+            Ray::new(origin.into(), dir.into(), 0.0, tmax),
         )
     }
 
     /// The closest hit along `origin + t·dir`, `t ∈ [0, tmax]` (`dir` unit).
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        let ray = Self::ray(origin, dir, tmax);
+        let (ray, exact) = Self::rays(origin, dir, tmax);
         let mut hit = obvhs::ray::RayHit::none();
-        let mut uv = (0.0f32, 0.0f32);
+        let mut best = (0.0f32, 0.0f32, 0.0f32);
         let found = self
             .bvh
-            .ray_traverse(ray, &mut hit, |r, k| match self.test(k, r) {
+            .ray_traverse(ray, &mut hit, |r, k| match self.test(k, &exact) {
                 Some((t, u, v)) => {
-                    if t < r.tmax {
-                        uv = (u, v);
+                    let shifted = t + BACK_OFF;
+                    if shifted < r.tmax {
+                        best = (t, u, v);
                     }
-                    t
+                    shifted
                 }
                 None => f32::INFINITY,
             });
         found.then(|| Hit {
             tri: self.ids[hit.primitive_id as usize],
-            t: (hit.t - BACK_OFF).max(0.0),
-            u: uv.0,
-            v: uv.1,
+            t: best.0,
+            u: best.1,
+            v: best.2,
         })
     }
 
     /// True when nothing lies along `origin + t·dir` for `t ∈ [0, tmax]`.
     pub fn unoccluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        let ray = Self::ray(origin, dir, tmax);
-        self.bvh
-            .ray_traverse_miss(ray, |r, k| self.test(k, r).map_or(f32::INFINITY, |h| h.0))
+        let (ray, exact) = Self::rays(origin, dir, tmax);
+        self.bvh.ray_traverse_miss(ray, |_, k| {
+            self.test(k, &exact)
+                .map_or(f32::INFINITY, |h| h.0 + BACK_OFF)
+        })
     }
 
     /// Number of triangles.

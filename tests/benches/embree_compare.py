@@ -111,7 +111,8 @@ def main():
         f"closest hit: both hit {both.sum()}, only obvhs {(o_hit & ~e_hit).sum()}, only Embree {(e_hit & ~o_hit).sum()}, "
         f"of {len(hit_t)}; distances agree to 1e-4 (relative) on {(rel < 1e-4).sum()} of {both.sum()} "
         f"(median |Δt|/t {np.median(rel) if len(rel) else 0:.1e}, max {rel.max() if len(rel) else 0:.1e}; "
-        f"differing by > 1e-3: {(rel > 1e-3).sum()})"
+        f"differing by > 1e-3: {(rel > 1e-3).sum()}; "
+        f"max |Δt| {np.abs(dist[both] - hit_t[both]).max() if both.any() else 0:.1e} m)"
     )
     agree = (occ == (occluded == 1)).sum()
     print(f"occlusion: answers agree on {agree} of {len(occ)} rays ({occ.sum()} occluded for Embree, {(occluded == 1).sum()} for obvhs)")
