@@ -1,0 +1,107 @@
+//! Measures a bake's texel noise: bakes the scene twice with different seeds
+//! and compares every valid texel. For two independent estimates a and b of
+//! the same value, σ ≈ |a − b| / √2, so each texel's relative noise is
+//! |a − b| / (√2 · (a + b)/2) on the RGB mean. Texels darker than 1 % of the
+//! scene's mean texel are left out (their relative noise means nothing).
+//!
+//!     cargo run --release --example texel_noise -- SCENE [KEY=VALUE ...]
+//!
+//! KEY=VALUE pairs are settings as in a `--config` TOML file, e.g.
+//! `texels_per_meter=4 'sky=[0.4,0.5,0.7]'`.
+
+use radbake::{BakeConfig, Silent};
+use std::time::Instant;
+
+fn main() -> anyhow::Result<()> {
+    let mut args = std::env::args().skip(1);
+    let path = args
+        .next()
+        .ok_or_else(|| anyhow::anyhow!("usage: texel_noise SCENE [KEY=VALUE ...]"))?;
+    let toml: String = args.map(|a| a + "\n").collect();
+    let config = BakeConfig::from_toml_over(&BakeConfig::default(), &toml)?;
+    let scene = radbake::scene::load(std::path::Path::new(&path), &Default::default())?;
+    let mut bakes = Vec::new();
+    for seed in [config.seed, config.seed.wrapping_add(1)] {
+        let t = Instant::now();
+        let b = radbake::bake(
+            &scene,
+            &BakeConfig {
+                seed,
+                ..config.clone()
+            },
+            &Silent,
+        )?;
+        println!("seed {seed}: {:.1} s", t.elapsed().as_secs_f64());
+        bakes.push(b);
+    }
+    let (a, b) = (&bakes[0], &bakes[1]);
+    let valid: Vec<usize> = (0..a.lightmaps.texel_values.len())
+        .filter(|&i| a.texel_valid[i] && b.texel_valid[i])
+        .collect();
+    let lum = |v: glam::Vec3| v.element_sum() as f64 / 3.0;
+    let mean = valid
+        .iter()
+        .map(|&i| lum(a.lightmaps.texel_values[i]))
+        .sum::<f64>()
+        / valid.len().max(1) as f64;
+    let mut rel: Vec<f64> = valid
+        .iter()
+        .filter_map(|&i| {
+            let (x, y) = (
+                lum(a.lightmaps.texel_values[i]),
+                lum(b.lightmaps.texel_values[i]),
+            );
+            let m = 0.5 * (x + y);
+            (m > 0.01 * mean).then(|| (x - y).abs() / (std::f64::consts::SQRT_2 * m))
+        })
+        .collect();
+    // Absolute noise against the mean texel (the denoiser's RMSE measure),
+    // and the relative noise of texels brighter than 10 % of the mean.
+    let abs_rms = (valid
+        .iter()
+        .map(|&i| {
+            let d = lum(a.lightmaps.texel_values[i]) - lum(b.lightmaps.texel_values[i]);
+            d * d / 2.0
+        })
+        .sum::<f64>()
+        / valid.len().max(1) as f64)
+        .sqrt();
+    let bright: Vec<f64> = valid
+        .iter()
+        .filter_map(|&i| {
+            let (x, y) = (
+                lum(a.lightmaps.texel_values[i]),
+                lum(b.lightmaps.texel_values[i]),
+            );
+            let m = 0.5 * (x + y);
+            (m > 0.1 * mean).then(|| (x - y).abs() / (std::f64::consts::SQRT_2 * m))
+        })
+        .collect();
+    let bright_rms =
+        (bright.iter().map(|r| r * r).sum::<f64>() / bright.len().max(1) as f64).sqrt();
+    println!(
+        "noise RMS against the mean texel {:.2} %; texels above 10 % of the mean: {}, relative noise RMS {:.2} %",
+        abs_rms / mean * 100.0,
+        bright.len(),
+        bright_rms * 100.0
+    );
+    rel.sort_by(f64::total_cmp);
+    let n = rel.len().max(1);
+    let rms = (rel.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
+    let pct = |p: f64| {
+        rel.get(((n - 1) as f64 * p) as usize)
+            .copied()
+            .unwrap_or(0.0)
+            * 100.0
+    };
+    println!(
+        "{} valid texels, {} above 1 % of the mean ({mean:.4}): relative noise RMS {:.2} %, median {:.2} %, 90th percentile {:.2} %, {:.1} % of texels under 1 %",
+        valid.len(),
+        rel.len(),
+        rms * 100.0,
+        pct(0.5),
+        pct(0.9),
+        rel.iter().filter(|&&r| r < 0.01).count() as f64 * 100.0 / n as f64
+    );
+    Ok(())
+}
