@@ -173,7 +173,11 @@ impl BakeConfig {
             texels_per_meter: 116.0,
             padding: 4,
             patch_texels: 4,
-            rays_per_patch: 1024,
+            // With the final gather on, F only carries the second and later
+            // bounces: 256 rays change the Cornell box's instance means by
+            // under 0.06 % and Sponza's texel noise not at all, against
+            // 1024, and save a quarter of Sponza's bake (README).
+            rays_per_patch: 256,
             tolerance: 1e-4,
             max_iterations: 200,
             uv: UvSource::Unwrap,
@@ -201,12 +205,12 @@ impl BakeConfig {
         }
     }
 
-    /// Quick look: a quarter of the rays, coarser texels, loose tolerance.
+    /// Quick look: a quarter of the light samples and gather rays, coarser texels, loose tolerance.
     pub const fn preview() -> Self {
         let m = Self::medium();
         BakeConfig {
             texels_per_meter: 48.0,
-            rays_per_patch: 256,
+            rays_per_patch: 128,
             direct_samples: 16,
             final_gather: 32,
             tolerance: 1e-3,
@@ -219,7 +223,7 @@ impl BakeConfig {
         let m = Self::medium();
         BakeConfig {
             patch_texels: 2,
-            rays_per_patch: 4096,
+            rays_per_patch: 1024,
             direct_samples: 256,
             final_gather: 512,
             tolerance: 1e-5,

@@ -386,10 +386,19 @@ fn closed_room_absorbs_what_the_lamp_emits() {
     let path = dir.join("room.gltf");
     b.write(&path);
     let scene = radbake::scene::load(&path, &Default::default()).unwrap();
-    for emitters in [EmitterSampling::Direct, EmitterSampling::Radiosity] {
+    // Through the solve, the small lamp's light reaches the room only by
+    // the form-factor rays that find it, so the absorbed total carries their
+    // noise: over seeds ±2.6 % at 256 rays per patch, ±1.4 % at 1024,
+    // ±0.73 % at 4096 (sampled directly: 0.06 %). The test is of energy
+    // conservation, so it buys the rays.
+    for (emitters, rays_per_patch) in [
+        (EmitterSampling::Direct, 256),
+        (EmitterSampling::Radiosity, 4096),
+    ] {
         let cfg = BakeConfig {
             texels_per_meter: 32.0,
             emitters,
+            rays_per_patch,
             ..BakeConfig::default()
         };
         let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
