@@ -112,18 +112,19 @@ impl Cutouts {
     }
 }
 
-/// `dir` with −0.0 components made +0.0: obvhs picks the traversal octant
-/// from the sign bits, and a −0.0 component (e.g. −(0, −1, 0) for a light
-/// pointing straight down) made rays miss everything.
 /// How far behind its origin every ray starts. obvhs's CWBVH box test
 /// clamps a box's entry distance to at least 1e-4 (`cwbvh::node::EPSILON`,
 /// an absolute distance), so a node left within 0.1 mm of the origin is
 /// culled: a ray leaving a wall's foot into the floor it stands on went
-/// through the corner (44 of 75,776 Cornell form-factor rays leaked). Starting
-/// the ray 0.2 mm back, with `tmin` = 0.2 mm, keeps the segment and moves
-/// every box exit past the clamp.
+/// through the corner (44 of 75,776 Cornell form-factor rays leaked). obvhs
+/// traverses the ray started 0.2 mm back with `tmin` = 0.2 mm (the same
+/// segment, every box exit past the clamp); triangles are tested against
+/// the exact ray.
 const BACK_OFF: f32 = 2e-4;
 
+/// `dir` with −0.0 components made +0.0: obvhs picks the traversal octant
+/// from the sign bits, and a −0.0 component (e.g. −(0, −1, 0) for a light
+/// pointing straight down) made rays miss everything.
 fn positive_zeros(dir: Vec3) -> Vec3 {
     dir + Vec3::ZERO
 }
