@@ -39,55 +39,46 @@ fn main() -> anyhow::Result<()> {
         .filter(|&i| a.texel_valid[i] && b.texel_valid[i])
         .collect();
     let lum = |v: glam::Vec3| v.element_sum() as f64 / 3.0;
-    let mean = valid
-        .iter()
-        .map(|&i| lum(a.lightmaps.texel_values[i]))
-        .sum::<f64>()
-        / valid.len().max(1) as f64;
-    let mut rel: Vec<f64> = valid
-        .iter()
-        .filter_map(|&i| {
-            let (x, y) = (
-                lum(a.lightmaps.texel_values[i]),
-                lum(b.lightmaps.texel_values[i]),
-            );
-            let m = 0.5 * (x + y);
-            (m > 0.01 * mean).then(|| (x - y).abs() / (std::f64::consts::SQRT_2 * m))
-        })
-        .collect();
-    // Absolute noise against the mean texel (the denoiser's RMSE measure),
-    // and the relative noise of texels brighter than 10 % of the mean.
-    let abs_rms = (valid
+    // Each valid texel's (luminance in bake a, in bake b).
+    let pairs: Vec<(f64, f64)> = valid
         .iter()
         .map(|&i| {
-            let d = lum(a.lightmaps.texel_values[i]) - lum(b.lightmaps.texel_values[i]);
-            d * d / 2.0
-        })
-        .sum::<f64>()
-        / valid.len().max(1) as f64)
-        .sqrt();
-    let bright: Vec<f64> = valid
-        .iter()
-        .filter_map(|&i| {
-            let (x, y) = (
+            (
                 lum(a.lightmaps.texel_values[i]),
                 lum(b.lightmaps.texel_values[i]),
-            );
-            let m = 0.5 * (x + y);
-            (m > 0.1 * mean).then(|| (x - y).abs() / (std::f64::consts::SQRT_2 * m))
+            )
         })
         .collect();
-    let bright_rms =
-        (bright.iter().map(|r| r * r).sum::<f64>() / bright.len().max(1) as f64).sqrt();
+    let mean = pairs.iter().map(|p| p.0).sum::<f64>() / pairs.len().max(1) as f64;
+    // Relative noise of the texels brighter than `floor` × the mean.
+    let relative = |floor: f64| -> Vec<f64> {
+        pairs
+            .iter()
+            .filter_map(|&(x, y)| {
+                let m = 0.5 * (x + y);
+                (m > floor * mean).then(|| (x - y).abs() / (std::f64::consts::SQRT_2 * m))
+            })
+            .collect()
+    };
+    let rms = |v: &[f64]| (v.iter().map(|r| r * r).sum::<f64>() / v.len().max(1) as f64).sqrt();
+    let mut rel = relative(0.01);
+    // Absolute noise against the mean texel (the denoiser's RMSE measure),
+    // and the relative noise of texels brighter than 10 % of the mean.
+    let abs_rms = (pairs
+        .iter()
+        .map(|(x, y)| (x - y).powi(2) / 2.0)
+        .sum::<f64>()
+        / pairs.len().max(1) as f64)
+        .sqrt();
+    let bright = relative(0.1);
     println!(
         "noise RMS against the mean texel {:.2} %; texels above 10 % of the mean: {}, relative noise RMS {:.2} %",
         abs_rms / mean * 100.0,
         bright.len(),
-        bright_rms * 100.0
+        rms(&bright) * 100.0
     );
     rel.sort_by(f64::total_cmp);
     let n = rel.len().max(1);
-    let rms = (rel.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
     let pct = |p: f64| {
         rel.get(((n - 1) as f64 * p) as usize)
             .copied()
@@ -98,7 +89,7 @@ fn main() -> anyhow::Result<()> {
         "{} valid texels, {} above 1 % of the mean ({mean:.4}): relative noise RMS {:.2} %, median {:.2} %, 90th percentile {:.2} %, {:.1} % of texels under 1 %",
         valid.len(),
         rel.len(),
-        rms * 100.0,
+        rms(&rel) * 100.0,
         pct(0.5),
         pct(0.9),
         rel.iter().filter(|&&r| r < 0.01).count() as f64 * 100.0 / n as f64

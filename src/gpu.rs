@@ -17,7 +17,6 @@ use crate::raycast::Hit;
 use anyhow::{anyhow, bail, Context as _, Result};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
 use std::time::Duration;
@@ -92,17 +91,8 @@ impl GpuRayCaster {
             bail!("no triangles");
         }
         let (adapter, device, queue) = crate::preview::offscreen_device()?;
-        let tris: Vec<Triangle> = geometry
-            .p_ws
-            .iter()
-            .map(|p| Triangle {
-                v0: p[0].into(),
-                v1: p[1].into(),
-                v2: p[2].into(),
-            })
-            .collect();
         let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(
-            &tris,
+            &crate::raycast::obvhs_triangles(geometry),
             BvhBuildParams::medium_build(),
             &mut Duration::default(),
         );

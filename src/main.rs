@@ -38,6 +38,20 @@ enum Command {
     Render(RenderArgs),
 }
 
+/// Where `render` and `preview` look from.
+#[derive(Args)]
+struct ViewArgs {
+    /// The glTF camera of this name [default: the first camera, or a framing of the scene].
+    #[arg(long, conflicts_with = "look_from")]
+    camera: Option<String>,
+    /// Eye position `x,y,z` (world, metres).
+    #[arg(long, value_parser = parse_vec3)]
+    look_from: Option<[f32; 3]>,
+    /// Look towards `x,y,z` [default: the centre of the scene].
+    #[arg(long, value_parser = parse_vec3, requires = "look_from")]
+    look_at: Option<[f32; 3]>,
+}
+
 #[derive(Args)]
 struct RenderArgs {
     /// The scene (.gltf or .glb), as given to `radbake bake`.
@@ -57,15 +71,8 @@ struct RenderArgs {
     /// Estimator of the reference (the final pass always traces paths).
     #[arg(long, value_enum, default_value = "path")]
     integrator: radbake::trace::render::Integrator,
-    /// The glTF camera of this name [default: the first camera, or a framing of the scene].
-    #[arg(long, conflicts_with = "look_from")]
-    camera: Option<String>,
-    /// Eye position `x,y,z` (world, metres).
-    #[arg(long, value_parser = parse_vec3)]
-    look_from: Option<[f32; 3]>,
-    /// Look towards `x,y,z` [default: the centre of the scene].
-    #[arg(long, value_parser = parse_vec3, requires = "look_from")]
-    look_at: Option<[f32; 3]>,
+    #[command(flatten)]
+    at: ViewArgs,
     /// Vertical field of view in degrees for --look-from and the framing.
     #[arg(long, default_value_t = 50.0)]
     fov: f32,
@@ -122,7 +129,7 @@ fn run_render(args: &RenderArgs) -> Result<(), (u8, String)> {
         integrator = Integrator::Path;
     }
     let yfov = args.fov.to_radians();
-    let view = match (&args.camera, args.look_from) {
+    let view = match (&args.at.camera, args.at.look_from) {
         (Some(name), _) => {
             let cam = scene
                 .cameras
@@ -138,6 +145,7 @@ fn run_render(args: &RenderArgs) -> Result<(), (u8, String)> {
         }
         (None, Some(from)) => {
             let at = args
+                .at
                 .look_at
                 .map(Into::into)
                 .unwrap_or_else(|| centre(geometry));
@@ -240,15 +248,8 @@ struct PreviewArgs {
     /// Image (headless) or window size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720", value_parser = parse_size)]
     size: (u32, u32),
-    /// Start at the glTF camera of this name [default: the first camera, or a framing of the scene].
-    #[arg(long, conflicts_with = "look_from")]
-    camera: Option<String>,
-    /// Start at this eye position `x,y,z` (world, metres).
-    #[arg(long, value_parser = parse_vec3)]
-    look_from: Option<[f32; 3]>,
-    /// Look towards `x,y,z` [default: the centre of the scene].
-    #[arg(long, value_parser = parse_vec3, requires = "look_from")]
-    look_at: Option<[f32; 3]>,
+    #[command(flatten)]
+    at: ViewArgs,
     /// Headless: render N frames and print ms/frame. Window: render N frames, then exit.
     #[arg(long)]
     frames: Option<u32>,
@@ -291,11 +292,11 @@ fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
 #[cfg(feature = "preview")]
 fn run_preview(args: &PreviewArgs) -> Result<(), (u8, String)> {
     use radbake::preview::{Options, Settings, Viewpoint};
-    let viewpoint = match (&args.camera, args.look_from) {
+    let viewpoint = match (&args.at.camera, args.at.look_from) {
         (Some(name), _) => Viewpoint::Camera(name.clone()),
         (None, Some(from)) => Viewpoint::LookAt {
             from: from.into(),
-            at: args.look_at.map(Into::into),
+            at: args.at.look_at.map(Into::into),
         },
         (None, None) => Viewpoint::Auto,
     };

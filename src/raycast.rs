@@ -112,6 +112,20 @@ impl Cutouts {
     }
 }
 
+/// `geometry`'s world-space triangles as obvhs builds its BVHs from them
+/// (the CPU's CWBVH here, the GPU's BVH2 in `gpu.rs`).
+pub(crate) fn obvhs_triangles(geometry: &Geometry) -> Vec<Triangle> {
+    geometry
+        .p_ws
+        .iter()
+        .map(|p| Triangle {
+            v0: p[0].into(),
+            v1: p[1].into(),
+            v2: p[2].into(),
+        })
+        .collect()
+}
+
 /// How far behind its origin every ray starts. obvhs's CWBVH box test
 /// clamps a box's entry distance to at least 1e-4 (`cwbvh::node::EPSILON`,
 /// an absolute distance), so a node left within 0.1 mm of the origin is
@@ -150,17 +164,11 @@ impl RayCaster {
     /// Builds the BVH over `geometry` with obvhs build settings `params`
     /// (for the benchmarks, which compare presets).
     pub fn with_params(scene: &Scene, geometry: &Geometry, params: BvhBuildParams) -> RayCaster {
-        let tris: Vec<Triangle> = geometry
-            .p_ws
-            .iter()
-            .map(|p| Triangle {
-                v0: p[0].into(),
-                v1: p[1].into(),
-                v2: p[2].into(),
-            })
-            .collect();
-        let bvh =
-            obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, params, &mut Duration::default());
+        let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+            &obvhs_triangles(geometry),
+            params,
+            &mut Duration::default(),
+        );
         let cutouts = Cutouts::new(scene);
         let ids: Vec<u32> = bvh.primitive_indices.clone();
         let ordered: Vec<Tri> = ids
@@ -211,15 +219,19 @@ impl RayCaster {
     /// `BACK_OFF`, in its ray's terms).
     fn rays(origin: Vec3, dir: Vec3, tmax: f32) -> (Ray, Ray) {
         let dir = positive_zeros(dir);
-        (
-            Ray::new(
-                (origin - BACK_OFF * dir).into(),
-                dir.into(),
-                BACK_OFF,
-                tmax + BACK_OFF,
-            ),
-            Ray::new(origin.into(), dir.into(), 0.0, tmax),
-        )
+        let traversed = Ray::new(
+            (origin - BACK_OFF * dir).into(),
+            dir.into(),
+            BACK_OFF,
+            tmax + BACK_OFF,
+        );
+        let exact = Ray {
+            origin: origin.into(),
+            tmin: 0.0,
+            tmax,
+            ..traversed
+        };
+        (traversed, exact)
     }
 
     /// The closest hit along `origin + t·dir`, `t ∈ [0, tmax]` (`dir` unit).

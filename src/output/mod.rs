@@ -14,6 +14,24 @@ use crate::scene::Scene;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
+/// Writes `img` to `path` as a PNG, atomically ([`write_atomic`]).
+///
+/// # Errors
+/// [`Error::Encode`] or [`Error::Io`].
+pub fn write_png<P>(path: &Path, img: &image::ImageBuffer<P, Vec<P::Subpixel>>) -> Result<()>
+where
+    P: image::PixelWithColorType,
+    [P::Subpixel]: image::EncodableLayout,
+{
+    write_atomic(path, |tmp| {
+        img.save_with_format(tmp, image::ImageFormat::Png)
+            .map_err(|e| Error::Encode {
+                path: path.to_path_buf(),
+                message: e.to_string(),
+            })
+    })
+}
+
 /// Writes `path` atomically: `write` fills a temporary sibling, which is
 /// synced and renamed over `path` only if `write` succeeds.
 ///
@@ -145,13 +163,7 @@ pub fn write_preview_png(path: &Path, lightmaps: &Lightmaps, page: usize) -> Res
         let c = |c: f32| (linear_to_srgb((c / (1.0 + c)).clamp(0.0, 1.0)) * 255.0 + 0.5) as u8;
         image::Rgb([c(v.x), c(v.y), c(v.z)])
     });
-    write_atomic(path, |tmp| {
-        img.save_with_format(tmp, image::ImageFormat::Png)
-            .map_err(|e| Error::Encode {
-                path: path.to_path_buf(),
-                message: e.to_string(),
-            })
-    })
+    write_png(path, &img)
 }
 
 /// Writes the lightmap pages into `out_dir` (created if missing) as
@@ -210,13 +222,7 @@ pub fn write_extra_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
                     * 255.0)
                     .round() as u8])
             });
-            write_atomic(&path, |tmp| {
-                img.save_with_format(tmp, image::ImageFormat::Png)
-                    .map_err(|e| Error::Encode {
-                        path: path.clone(),
-                        message: e.to_string(),
-                    })
-            })?;
+            write_png(&path, &img)?;
             written.push(path);
         }
     }
@@ -262,13 +268,7 @@ pub fn write_debug_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
             img.put_pixel(x, y, image::Rgba([c(0), c(1), c(2), alpha]));
         }
         let path = out_dir.join(format!("lightmap_{page}_debug.png"));
-        write_atomic(&path, |tmp| {
-            img.save_with_format(tmp, image::ImageFormat::Png)
-                .map_err(|e| Error::Encode {
-                    path: path.clone(),
-                    message: e.to_string(),
-                })
-        })?;
+        write_png(&path, &img)?;
         written.push(path);
     }
     Ok(written)

@@ -256,16 +256,10 @@ pub fn describe(adapter: &wgpu::Adapter) -> String {
 pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()> {
     let img = image::RgbaImage::from_raw(width, height, rgba.to_vec())
         .ok_or_else(|| anyhow!("image size mismatch"))?;
-    let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .context("PNG encoding")?;
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    crate::output::write_bytes_atomic(path, &bytes)?;
+    crate::output::write_png(path, &img)?;
     Ok(())
 }
 

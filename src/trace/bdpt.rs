@@ -463,205 +463,196 @@ impl<'t, 'a> Bdpt<'t, 'a> {
         rng: &mut Stream,
         splats: &mut Vec<(glam::Vec2, Vec3)>,
     ) -> Vec3 {
-        radiance(self.tracer, &self.choice, view, aspect, dir, rng, splats)
-    }
-}
-
-/// Radiance arriving at the camera along −`dir`, by BDPT.
-fn radiance(
-    tracer: &Tracer,
-    choice: &LightChoice,
-    view: &super::render::View,
-    aspect: f32,
-    dir: Vec3,
-    rng: &mut Stream,
-    splats: &mut Vec<(glam::Vec2, Vec3)>,
-) -> Vec3 {
-    let eye = view.eye;
-    let film_area = 4.0 * view.tan_half_y * view.tan_half_y * aspect;
-    let cos0 = view.forward.dot(dir);
-    // Camera subpath: the eye, then the walk (pinhole: β = 1 per sample).
-    let mut camera = vec![Vertex {
-        kind: Kind::Camera {
-            forward: view.forward,
-            film_area,
-        },
-        p: eye,
-        n: Vec3::ZERO,
-        beta: Vec3::ONE,
-        pdf_fwd: 1.0,
-        pdf_rev: 0.0,
-    }];
-    let sky = walk(
-        tracer,
-        &mut camera,
-        eye,
-        dir,
-        Vec3::ONE,
-        1.0 / (film_area * cos0 * cos0 * cos0),
-        rng,
-        MAX_DEPTH + 2,
-        true,
-    );
-    let mut l = sky;
-    // Light subpath from a finite light.
-    let mut light: Vec<Vertex> = Vec::new();
-    if !choice.is_empty() {
-        if let Some(z0) = choice.sample(tracer, rng) {
-            let u = rng.next_vec2();
-            let (dir, pdf_dir, beta) = match z0.kind {
-                Kind::AreaLight { le, .. } => {
-                    let d = to_world(cosine_hemisphere(u), z0.n);
-                    // Le cos / (p_A · cos/π) = Le π / p_A.
-                    (d, z0.n.dot(d) / PI, le * PI / z0.pdf_fwd)
-                }
-                Kind::PointLight { i } => {
-                    let z = 1.0 - 2.0 * u.x;
-                    let r = (1.0 - z * z).max(0.0).sqrt();
-                    let phi = 2.0 * PI * u.y;
-                    let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
-                    let intensity = point_intensity(tracer, i, d, 1e-3);
-                    (d, 1.0 / (4.0 * PI), intensity * (4.0 * PI) / z0.pdf_fwd)
-                }
-                _ => unreachable!("light samples are lights"),
-            };
-            light.push(z0);
-            if beta.max_element() > 0.0 && pdf_dir > 0.0 {
-                let origin = if z0.has_normal() {
-                    offset_ray_origin(z0.p, z0.n)
-                } else {
-                    z0.p
+        let (tracer, choice) = (self.tracer, &self.choice);
+        let eye = view.eye;
+        let film_area = 4.0 * view.tan_half_y * view.tan_half_y * aspect;
+        let cos0 = view.forward.dot(dir);
+        // Camera subpath: the eye, then the walk (pinhole: β = 1 per sample).
+        let mut camera = vec![Vertex {
+            kind: Kind::Camera {
+                forward: view.forward,
+                film_area,
+            },
+            p: eye,
+            n: Vec3::ZERO,
+            beta: Vec3::ONE,
+            pdf_fwd: 1.0,
+            pdf_rev: 0.0,
+        }];
+        let sky = walk(
+            tracer,
+            &mut camera,
+            eye,
+            dir,
+            Vec3::ONE,
+            1.0 / (film_area * cos0 * cos0 * cos0),
+            rng,
+            MAX_DEPTH + 2,
+            true,
+        );
+        let mut l = sky;
+        // Light subpath from a finite light.
+        let mut light: Vec<Vertex> = Vec::new();
+        if !choice.is_empty() {
+            if let Some(z0) = choice.sample(tracer, rng) {
+                let u = rng.next_vec2();
+                let (dir, pdf_dir, beta) = match z0.kind {
+                    Kind::AreaLight { le, .. } => {
+                        let d = to_world(cosine_hemisphere(u), z0.n);
+                        // Le cos / (p_A · cos/π) = Le π / p_A.
+                        (d, z0.n.dot(d) / PI, le * PI / z0.pdf_fwd)
+                    }
+                    Kind::PointLight { i } => {
+                        let z = 1.0 - 2.0 * u.x;
+                        let r = (1.0 - z * z).max(0.0).sqrt();
+                        let phi = 2.0 * PI * u.y;
+                        let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                        let intensity = point_intensity(tracer, i, d, 1e-3);
+                        (d, 1.0 / (4.0 * PI), intensity * (4.0 * PI) / z0.pdf_fwd)
+                    }
+                    _ => unreachable!("light samples are lights"),
                 };
-                walk(
-                    tracer,
-                    &mut light,
-                    origin,
-                    dir,
-                    beta,
-                    pdf_dir,
-                    rng,
-                    MAX_DEPTH + 1,
-                    false,
-                );
-            }
-        }
-    }
-
-    // t = 1: light subpath vertices seen by the camera, splatted.
-    let cam = camera[0];
-    for s in 2..=light.len().min(MAX_DEPTH + 1) {
-        let qs = light[s - 1];
-        let d = eye - qs.p;
-        let dist2 = d.length_squared();
-        let w = d / dist2.sqrt();
-        let f_q = qs.f(&cam);
-        let cos_cam = view.forward.dot(-w);
-        if f_q == Vec3::ZERO || cos_cam <= 0.0 {
-            continue;
-        }
-        let Some(film) = view.project(qs.p, aspect) else {
-            continue;
-        };
-        if !visible(tracer, &qs, &cam) {
-            continue;
-        }
-        // β f |cos_q| cosθ / d² × W_e, W_e = 1 / (A cos⁴θ).
-        let we = 1.0 / (film_area * cos_cam.powi(4));
-        let c = qs.beta * f_q * (qs.n.dot(w).abs() * cos_cam / dist2) * we;
-        if c.max_element() > 0.0 {
-            let weight = mis_weight(tracer, choice, &light, &camera, None, s, 1);
-            splats.push((film, c * weight));
-        }
-    }
-
-    for t in 2..=camera.len() {
-        let pt = camera[t - 1];
-        let Kind::Surface {
-            albedo, emission, ..
-        } = pt.kind
-        else {
-            continue;
-        };
-        // Directional lights: one shadow ray, the only strategy (weight 1).
-        for light in &tracer.lights.punctual {
-            if light.kind == LightKind::Directional {
-                if let Some((value, to, _)) = punctual_irradiance(light, pt.p, pt.n) {
-                    if tracer
-                        .rays
-                        .unoccluded(offset_ray_origin(pt.p, pt.n), to, f32::INFINITY)
-                    {
-                        l += pt.beta * albedo * value;
-                    }
-                }
-            }
-        }
-        for s in 0..=light.len() {
-            if s + t - 2 > MAX_DEPTH {
-                break;
-            }
-            let (contribution, sampled) = match s {
-                0 => {
-                    if emission == Vec3::ZERO
-                        || tracer
-                            .lights
-                            .emitter_index(match pt.kind {
-                                Kind::Surface { tri, .. } => tri,
-                                _ => u32::MAX,
-                            })
-                            .is_none()
-                    {
-                        continue;
-                    }
-                    (pt.beta * emission, None)
-                }
-                1 => {
-                    let Some(mut q) = choice.sample(tracer, rng) else {
-                        continue;
+                light.push(z0);
+                if beta.max_element() > 0.0 && pdf_dir > 0.0 {
+                    let origin = if z0.has_normal() {
+                        offset_ray_origin(z0.p, z0.n)
+                    } else {
+                        z0.p
                     };
-                    let d = pt.p - q.p;
-                    let dist2 = d.length_squared();
-                    let w = d / dist2.sqrt();
-                    let emitted = match q.kind {
-                        Kind::AreaLight { le, .. } => {
-                            if q.n.dot(w) <= 0.0 {
-                                continue;
-                            }
-                            le * q.n.dot(w)
-                        }
-                        Kind::PointLight { i } => point_intensity(tracer, i, w, dist2.sqrt()),
-                        _ => continue,
-                    };
-                    let cos_pt = pt.n.dot(-w);
-                    if cos_pt <= 0.0 || emitted.max_element() <= 0.0 || !visible(tracer, &pt, &q) {
-                        continue;
-                    }
-                    // pt.β f Le cos_q cos_pt / (d² p_A)  (point: I cos_pt / (d² p)).
-                    let c = pt.beta * (albedo / PI) * emitted * cos_pt / (dist2 * q.pdf_fwd);
-                    q.beta = Vec3::ONE;
-                    (c, Some(q))
+                    walk(
+                        tracer,
+                        &mut light,
+                        origin,
+                        dir,
+                        beta,
+                        pdf_dir,
+                        rng,
+                        MAX_DEPTH + 1,
+                        false,
+                    );
                 }
-                _ => {
-                    let qs = light[s - 1];
-                    let f_q = qs.f(&pt);
-                    let f_p = pt.f(&qs);
-                    if f_q == Vec3::ZERO || f_p == Vec3::ZERO {
-                        continue;
-                    }
-                    let d = qs.p - pt.p;
-                    let dist2 = d.length_squared();
-                    let w = d / dist2.sqrt();
-                    let g = pt.n.dot(w).abs() * qs.n.dot(w).abs() / dist2;
-                    if !visible(tracer, &pt, &qs) {
-                        continue;
-                    }
-                    (qs.beta * f_q * g * f_p * pt.beta, None)
-                }
-            };
-            if contribution.max_element() <= 0.0 {
+            }
+        }
+
+        // t = 1: light subpath vertices seen by the camera, splatted.
+        let cam = camera[0];
+        for s in 2..=light.len().min(MAX_DEPTH + 1) {
+            let qs = light[s - 1];
+            let d = eye - qs.p;
+            let dist2 = d.length_squared();
+            let w = d / dist2.sqrt();
+            let f_q = qs.f(&cam);
+            let cos_cam = view.forward.dot(-w);
+            if f_q == Vec3::ZERO || cos_cam <= 0.0 {
                 continue;
             }
-            l += contribution * mis_weight(tracer, choice, &light, &camera, sampled, s, t);
+            let Some(film) = view.project(qs.p, aspect) else {
+                continue;
+            };
+            if !visible(tracer, &qs, &cam) {
+                continue;
+            }
+            // β f |cos_q| cosθ / d² × W_e, W_e = 1 / (A cos⁴θ).
+            let we = 1.0 / (film_area * cos_cam.powi(4));
+            let c = qs.beta * f_q * (qs.n.dot(w).abs() * cos_cam / dist2) * we;
+            if c.max_element() > 0.0 {
+                let weight = mis_weight(tracer, choice, &light, &camera, None, s, 1);
+                splats.push((film, c * weight));
+            }
         }
+
+        for t in 2..=camera.len() {
+            let pt = camera[t - 1];
+            let Kind::Surface {
+                albedo, emission, ..
+            } = pt.kind
+            else {
+                continue;
+            };
+            // Directional lights: one shadow ray, the only strategy (weight 1).
+            for light in &tracer.lights.punctual {
+                if light.kind == LightKind::Directional {
+                    if let Some((value, to, _)) = punctual_irradiance(light, pt.p, pt.n) {
+                        if tracer
+                            .rays
+                            .unoccluded(offset_ray_origin(pt.p, pt.n), to, f32::INFINITY)
+                        {
+                            l += pt.beta * albedo * value;
+                        }
+                    }
+                }
+            }
+            for s in 0..=light.len() {
+                if s + t - 2 > MAX_DEPTH {
+                    break;
+                }
+                let (contribution, sampled) = match s {
+                    0 => {
+                        if emission == Vec3::ZERO
+                            || tracer
+                                .lights
+                                .emitter_index(match pt.kind {
+                                    Kind::Surface { tri, .. } => tri,
+                                    _ => u32::MAX,
+                                })
+                                .is_none()
+                        {
+                            continue;
+                        }
+                        (pt.beta * emission, None)
+                    }
+                    1 => {
+                        let Some(mut q) = choice.sample(tracer, rng) else {
+                            continue;
+                        };
+                        let d = pt.p - q.p;
+                        let dist2 = d.length_squared();
+                        let w = d / dist2.sqrt();
+                        let emitted = match q.kind {
+                            Kind::AreaLight { le, .. } => {
+                                if q.n.dot(w) <= 0.0 {
+                                    continue;
+                                }
+                                le * q.n.dot(w)
+                            }
+                            Kind::PointLight { i } => point_intensity(tracer, i, w, dist2.sqrt()),
+                            _ => continue,
+                        };
+                        let cos_pt = pt.n.dot(-w);
+                        if cos_pt <= 0.0
+                            || emitted.max_element() <= 0.0
+                            || !visible(tracer, &pt, &q)
+                        {
+                            continue;
+                        }
+                        // pt.β f Le cos_q cos_pt / (d² p_A)  (point: I cos_pt / (d² p)).
+                        let c = pt.beta * (albedo / PI) * emitted * cos_pt / (dist2 * q.pdf_fwd);
+                        q.beta = Vec3::ONE;
+                        (c, Some(q))
+                    }
+                    _ => {
+                        let qs = light[s - 1];
+                        let f_q = qs.f(&pt);
+                        let f_p = pt.f(&qs);
+                        if f_q == Vec3::ZERO || f_p == Vec3::ZERO {
+                            continue;
+                        }
+                        let d = qs.p - pt.p;
+                        let dist2 = d.length_squared();
+                        let w = d / dist2.sqrt();
+                        let g = pt.n.dot(w).abs() * qs.n.dot(w).abs() / dist2;
+                        if !visible(tracer, &pt, &qs) {
+                            continue;
+                        }
+                        (qs.beta * f_q * g * f_p * pt.beta, None)
+                    }
+                };
+                if contribution.max_element() <= 0.0 {
+                    continue;
+                }
+                l += contribution * mis_weight(tracer, choice, &light, &camera, sampled, s, t);
+            }
+        }
+        l
     }
-    l
 }

@@ -164,13 +164,7 @@ impl Image {
             let c = |c: f32| (linear_to_srgb(aces(c)) * 255.0 + 0.5) as u8;
             image::Rgb([c(v.x), c(v.y), c(v.z)])
         });
-        crate::output::write_atomic(path, |tmp| {
-            img.save_with_format(tmp, image::ImageFormat::Png)
-                .map_err(|e| crate::Error::Encode {
-                    path: path.to_path_buf(),
-                    message: e.to_string(),
-                })
-        })
+        crate::output::write_png(path, &img)
     }
 }
 

@@ -7,20 +7,14 @@
 mod common;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use radbake::form_factors::{hemicube, raycast, raycast::Surfaces};
+use radbake::form_factors::{hemicube, raycast};
 use radbake::raycast::RayCaster;
 
 fn form_factors(c: &mut Criterion) {
     let scene = common::cornell();
     let bake = common::cornell_bake(&scene);
     let rays = RayCaster::new(&scene, &bake.geometry);
-    let s = Surfaces {
-        scene: &scene,
-        geometry: &bake.geometry,
-        texels: &bake.texels,
-        patches: &bake.patches,
-        rays: &rays,
-    };
+    let s = common::surfaces(&scene, &bake, &rays);
     let config = &bake.config;
     let mut group = c.benchmark_group("form_factors_cornell");
     group.throughput(Throughput::Elements(bake.patches.len() as u64));

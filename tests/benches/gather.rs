@@ -7,7 +7,6 @@ mod common;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
-use radbake::form_factors::raycast::Surfaces;
 use radbake::raycast::RayCaster;
 use radbake::{gather, lightmap};
 
@@ -15,13 +14,7 @@ fn final_gather(c: &mut Criterion) {
     let scene = common::cornell();
     let bake = common::cornell_bake(&scene);
     let rays = RayCaster::new(&scene, &bake.geometry);
-    let s = Surfaces {
-        scene: &scene,
-        geometry: &bake.geometry,
-        texels: &bake.texels,
-        patches: &bake.patches,
-        rays: &rays,
-    };
+    let s = common::surfaces(&scene, &bake, &rays);
     let indirect: Vec<Vec3> = bake
         .solution
         .irradiance
