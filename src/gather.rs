@@ -10,11 +10,15 @@
 //! light. The texel's final value is D (its direct light) + the gathered
 //! mean, so the patch grid never shows and no interpolation crosses a wall.
 //!
+//! The same rays are the hemisphere samples of the texel's direct light:
+//! the sky where they escape, sampled emitters with their MIS weight where
+//! they meet one (see [`crate::direct::hemisphere_light`]).
+//!
 //! **Texel validity** (as Unity's): a texel whose rays hit back faces in
 //! more than `BACKFACE_TOLERANCE` of cases lies inside or under geometry;
 //! it is marked invalid and later filled from valid texels of its chart.
 
-use crate::direct::Directional;
+use crate::direct::{hemisphere_light, Directional, Lights, Mis};
 use crate::form_factors::raycast::{Landing, Surfaces};
 use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
 use glam::Vec3;
@@ -42,6 +46,9 @@ pub struct Gathered {
     /// Ambient occlusion: the unoccluded fraction of the cosine-weighted
     /// hemisphere within the AO distance; empty unless asked for.
     pub ao: Vec<f32>,
+    /// Direct light from the gather rays (sky and MIS-weighted emitters,
+    /// see [`crate::direct::hemisphere_light`]); empty unless asked for.
+    pub direct: Vec<Vec3>,
     /// Rays cast.
     pub rays: u64,
 }
@@ -59,6 +66,11 @@ pub struct Extras {
 
 /// Gathers `rays` rays per texel. `first_pass` is H₁ per texel; `sampled`
 /// flags the materials whose emission is already in the direct light.
+/// With `direct`, the rays also estimate the hemisphere part of the direct
+/// light (sky, and the sampled emitters with the given MIS weights), which
+/// the direct pass then only estimates roughly for H₁: the direct pass's
+/// own hemisphere rays would duplicate these.
+#[allow(clippy::too_many_arguments)]
 pub fn gather(
     s: &Surfaces,
     first_pass: &[Vec3],
@@ -66,12 +78,13 @@ pub fn gather(
     rays: u32,
     seed: u64,
     extras: Extras,
+    direct: Option<(&Lights, Mis)>,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Gathered {
     let n = s.texels.len();
     let g = s.geometry;
     let chunk = 256;
-    type Texel = (Vec3, bool, f32, Directional, f32, u32);
+    type Texel = (Vec3, bool, f32, Directional, f32, u32, Vec3);
     let parts: Vec<Vec<Texel>> = (0..n.div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
@@ -87,6 +100,7 @@ pub fn gather(
                 let (mut sum, mut back, mut sq) = (Vec3::ZERO, 0u32, 0.0f32);
                 let mut dir_sum: Directional = [Vec3::ZERO; 3];
                 let mut open = 0u32;
+                let mut light = Vec3::ZERO;
                 let mut cast = 0u32;
                 for k in 0..rays {
                     // Once more rays have met back faces than an invalid
@@ -105,6 +119,9 @@ pub fn gather(
                     // Radiance for the directional part: everything seen.
                     let mut seen = Vec3::ZERO;
                     let (landing, hit) = s.trace(offset_ray_origin(p, ng), dir);
+                    if let Some((lights, mis)) = direct {
+                        light += hemisphere_light(s, lights, mis, (p, ng, dir), (landing, hit));
+                    }
                     if extras.ao_distance > 0.0 && hit.is_none_or(|h| h.t >= extras.ao_distance) {
                         open += 1;
                     }
@@ -150,7 +167,15 @@ pub fn gather(
                 let lum = mean.element_sum() / 3.0;
                 let variance = ((sq / n - lum * lum).max(0.0)) / n;
                 let dir_mean = dir_sum.map(|b| b / n);
-                out.push((mean, valid, variance, dir_mean, open as f32 / n, cast));
+                out.push((
+                    mean,
+                    valid,
+                    variance,
+                    dir_mean,
+                    open as f32 / n,
+                    cast,
+                    light / n,
+                ));
             }
             advance(out.len() as u64);
             out
@@ -162,9 +187,10 @@ pub fn gather(
         variance: Vec::with_capacity(n),
         directional: Vec::new(),
         ao: Vec::new(),
+        direct: Vec::new(),
         rays: 0,
     };
-    for (v, ok, var, d, ao, cast) in parts.into_iter().flatten() {
+    for (v, ok, var, d, ao, cast, light) in parts.into_iter().flatten() {
         gathered.rays += cast as u64;
         gathered.indirect.push(v);
         gathered.valid.push(ok);
@@ -174,6 +200,9 @@ pub fn gather(
         }
         if extras.ao_distance > 0.0 {
             gathered.ao.push(ao);
+        }
+        if direct.is_some() {
+            gathered.direct.push(light);
         }
     }
     gathered

@@ -230,14 +230,38 @@ pub fn bake<'s>(
             timer.begin("direct", texels.len() as u64);
             let sampled = direct_sampled_materials(scene, &geometry, config.emitters);
             let lights = direct::Lights::new(scene, &geometry, &sampled, Vec3::from(config.sky));
-            let (texel_direct, direct_dir, direct_rays) = direct::texels(
+            // With the final gather on (and casting at least as many rays as
+            // the direct light's samples, as every preset does), its rays
+            // estimate the hemisphere part of the direct light (sky, emitters
+            // by MIS) for the lightmap, so the direct pass casts only a
+            // quarter as many hemisphere rays, for the first pass H₁ that the
+            // solve and the gather's hits read (Sponza: 30 % fewer rays).
+            let gathering = config.final_gather > 0 && config.final_gather >= config.direct_samples;
+            let mis = direct::Mis {
+                light: config.direct_samples,
+                hemisphere: if gathering {
+                    config.final_gather
+                } else {
+                    config.direct_samples
+                },
+            };
+            let first_direct = direct::texels(
                 &surfaces,
                 &lights,
                 config.direct_samples,
+                if gathering {
+                    (config.direct_samples / 4).max(4)
+                } else {
+                    config.direct_samples
+                },
+                mis,
                 config.supersample,
                 config.seed,
                 &advance,
             );
+            let mut texel_direct = first_direct.total();
+            let direct_dir = first_direct.directional;
+            let direct_rays = first_direct.rays;
             let patch_direct: Vec<Vec3> = (0..patches.len())
                 .map(|i| {
                     let sum: Vec3 = patches
@@ -377,8 +401,17 @@ pub fn bake<'s>(
                     config.final_gather,
                     config.seed,
                     extras,
+                    gathering.then_some((&lights, mis)),
                     &advance,
                 );
+                if gathering {
+                    texel_direct = first_direct
+                        .light
+                        .iter()
+                        .zip(&g.direct)
+                        .map(|(l, h)| *l + *h)
+                        .collect();
+                }
                 gathered_dir = g.directional;
                 ao = g.ao;
                 timer.end("final_gather");

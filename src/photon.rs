@@ -369,14 +369,22 @@ pub fn bake_texels(
     // Direct light as the radiosity bake computes it (every emitter sampled).
     let all = vec![true; s.scene.materials.len()];
     let lights = Lights::new(s.scene, s.geometry, &all, tracer.lights.sky);
-    let (direct, _, _) = direct::texels(
+    let n_direct = config.direct_samples;
+    let mis = direct::Mis {
+        light: n_direct,
+        hemisphere: n_direct,
+    };
+    let direct = direct::texels(
         s,
         &lights,
-        config.direct_samples,
+        n_direct,
+        n_direct,
+        mis,
         config.supersample,
         config.seed,
         &|_| {},
-    );
+    )
+    .total();
     let rays = config.final_gather;
     // At most ~64 k precomputed points (each a k-nearest search).
     let pre = Precomputed::new(&map, k, (map.photons.len() / 65536).max(4));

@@ -8,7 +8,7 @@ mod common;
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
 use radbake::raycast::RayCaster;
-use radbake::{gather, lightmap};
+use radbake::{direct, gather, lightmap};
 
 fn final_gather(c: &mut Criterion) {
     let scene = common::cornell();
@@ -24,6 +24,18 @@ fn final_gather(c: &mut Criterion) {
         .collect();
     let first = lightmap::first_pass(&bake.texels, &bake.patches, &bake.direct, &indirect);
     let sampled = radbake::direct_sampled_materials(&scene, &bake.geometry, bake.config.emitters);
+    // As the bake does: the gather rays also estimate the direct light's
+    // hemisphere part (sky, emitters by MIS).
+    let lights = direct::Lights::new(
+        &scene,
+        &bake.geometry,
+        &sampled,
+        Vec3::from(bake.config.sky),
+    );
+    let mis = direct::Mis {
+        light: bake.config.direct_samples,
+        hemisphere: bake.config.final_gather,
+    };
     let extras = gather::Extras {
         directional: false,
         sky: Vec3::from(bake.config.sky),
@@ -41,6 +53,7 @@ fn final_gather(c: &mut Criterion) {
                 config.final_gather,
                 config.seed,
                 extras,
+                Some((&lights, mis)),
                 &|_| {},
             )
         })
