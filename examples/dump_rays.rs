@@ -1,5 +1,5 @@
 //! Writes a scene's world triangles and a seeded set of incoherent rays to a
-//! binary file, with radbake's (obvhs) answers, and measures obvhs's
+//! binary file, with radbake's answers (its BVH4 over an obvhs build), and measures its
 //! closest-hit and occlusion rays/s on them (one thread and all threads).
 //! `tests/benches/embree_compare.py` casts the same rays with Embree.
 //!
@@ -10,12 +10,12 @@
 //! `examples/gen_level.rs` writes it) is used.
 //!
 //! File layout (little-endian): `b"RBRAYS01"`; u32 triangles, closest-hit
-//! rays, occlusion rays, rayon threads; f64 obvhs rays/s: closest-hit on 1
+//! rays, occlusion rays, rayon threads; f64 radbake rays/s: closest-hit on 1
 //! and on all threads, occlusion on 1 and on all threads; f32 triangle
 //! corners [n][3][3]; closest-hit rays
 //! then occlusion rays, f32 [n][7] (origin, unit direction, tmax; tmax is
-//! +∞ for closest-hit rays); obvhs's hit distance per closest-hit ray, f32
-//! (+∞ for a miss); obvhs's occlusion per occlusion ray, u8 (1 = occluded).
+//! +∞ for closest-hit rays); radbake's hit distance per closest-hit ray, f32
+//! (+∞ for a miss); radbake's occlusion per occlusion ray, u8 (1 = occluded).
 
 #[path = "../tests/benches/common/mod.rs"]
 mod common;
@@ -27,7 +27,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(about = "Dump a scene's triangles and incoherent rays; time obvhs on them")]
+#[command(
+    about = "Dump a scene's triangles and incoherent rays; time radbake's ray caster on them"
+)]
 struct Args {
     /// The scene (.gltf/.glb); the generated level when left out.
     scene: Option<PathBuf>,
@@ -172,12 +174,12 @@ fn main() -> anyhow::Result<()> {
         blocked
     );
     println!(
-        "obvhs closest-hit: {:.2} M rays/s on 1 thread, {:.2} M rays/s on {threads} threads",
+        "radbake closest-hit: {:.2} M rays/s on 1 thread, {:.2} M rays/s on {threads} threads",
         c1 / 1e6,
         cn / 1e6
     );
     println!(
-        "obvhs occlusion:   {:.2} M rays/s on 1 thread, {:.2} M rays/s on {threads} threads",
+        "radbake occlusion:   {:.2} M rays/s on 1 thread, {:.2} M rays/s on {threads} threads",
         o1 / 1e6,
         on / 1e6
     );

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Casts the rays of `examples/dump_rays.rs` with Embree (the `embreex`
 package: Embree 4, `rtcIntersect1` / `rtcOccluded1` per ray) and compares
-rays/s and answers with radbake's obvhs BVH.
+rays/s and answers with radbake's ray caster (a SIMD BVH4 collapsed from
+an obvhs PLOC build).
 
     cargo run --release --example dump_rays -- --out rays.bin
     pip install embreex numpy
@@ -9,7 +10,7 @@ rays/s and answers with radbake's obvhs BVH.
 
 Prints how many hit distances and occlusion answers agree, then Embree's
 rays/s on one thread and on all threads (Python threads over chunks of rays:
-embreex releases the GIL while it traces) beside obvhs's, which dump_rays
+embreex releases the GIL while it traces) beside radbake's, which dump_rays
 measured and stored in the file, and their ratio.
 """
 
@@ -108,14 +109,14 @@ def main():
     rel = np.abs(dist[both] - hit_t[both]) / np.maximum(hit_t[both], 1e-6)
     print(f"{a.file}: {len(tris)} triangles, Embree BVH built in {build:.3f} s")
     print(
-        f"closest hit: both hit {both.sum()}, only obvhs {(o_hit & ~e_hit).sum()}, only Embree {(e_hit & ~o_hit).sum()}, "
+        f"closest hit: both hit {both.sum()}, only radbake {(o_hit & ~e_hit).sum()}, only Embree {(e_hit & ~o_hit).sum()}, "
         f"of {len(hit_t)}; distances agree to 1e-4 (relative) on {(rel < 1e-4).sum()} of {both.sum()} "
         f"(median |Δt|/t {np.median(rel) if len(rel) else 0:.1e}, max {rel.max() if len(rel) else 0:.1e}; "
         f"differing by > 1e-3: {(rel > 1e-3).sum()}; "
         f"max |Δt| {np.abs(dist[both] - hit_t[both]).max() if both.any() else 0:.1e} m)"
     )
     agree = (occ == (occluded == 1)).sum()
-    print(f"occlusion: answers agree on {agree} of {len(occ)} rays ({occ.sum()} occluded for Embree, {(occluded == 1).sum()} for obvhs)")
+    print(f"occlusion: answers agree on {agree} of {len(occ)} rays ({occ.sum()} occluded for Embree, {(occluded == 1).sum()} for radbake)")
 
     for name, (o, d, tmax, query) in {
         "closest-hit": (co, cd, ct, "DISTANCE"),
@@ -126,8 +127,8 @@ def main():
         ours = obvhs[name]
         print(
             f"{name:<11}  Embree {one / 1e6:6.2f} M rays/s on 1 thread, {many / 1e6:6.2f} on {a.threads};  "
-            f"obvhs {ours[0] / 1e6:6.2f} on 1, {ours[1] / 1e6:6.2f} on {obvhs_threads};  "
-            f"obvhs/Embree {ours[0] / one:.2f} (1 thread), {ours[1] / many:.2f} (all)"
+            f"radbake {ours[0] / 1e6:6.2f} on 1, {ours[1] / 1e6:6.2f} on {obvhs_threads};  "
+            f"radbake/Embree {ours[0] / one:.2f} (1 thread), {ours[1] / many:.2f} (all)"
         )
 
 if __name__ == "__main__":

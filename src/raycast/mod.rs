@@ -1,13 +1,14 @@
-//! Ray casting over every world triangle with an `obvhs` compressed wide
-//! BVH (CWBVH, Ylitie et al. 2017; PLOC build, Meister & Bittner 2018).
+//! Ray casting over every world triangle: obvhs builds a binary BVH (PLOC,
+//! Meister & Bittner 2018), collapsed into our 4-wide SIMD BVH ([`bvh4`]).
 //! Closest-hit and occlusion queries; alpha-masked materials are cut out
 //! during traversal (any-hit test on the base colour alpha).
 
+mod bvh4;
+
 use crate::geometry::Geometry;
 use crate::scene::{Alpha, Scene, Texture, TextureRef};
-use glam::{Vec2, Vec3, Vec3A};
-use obvhs::cwbvh::CwBvh;
-use obvhs::ray::Ray;
+use bvh4::Bvh4;
+use glam::{Vec2, Vec3};
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 use std::time::Duration;
@@ -23,49 +24,6 @@ pub struct Hit {
     pub u: f32,
     /// Barycentric weight of corner 2.
     pub v: f32,
-}
-
-/// Triangle in the layout of Möller–Trumbore as arranged by madmann91's bvh
-/// (e1 = v0 − v1, e2 = v2 − v0, n = e1 × e2): fewer operations per test.
-#[derive(Clone, Copy, Debug)]
-struct Tri {
-    v0: Vec3A,
-    e1: Vec3A,
-    e2: Vec3A,
-    n: Vec3A,
-}
-
-impl Tri {
-    fn new(p: &[Vec3; 3]) -> Tri {
-        let v0 = Vec3A::from(p[0]);
-        let e1 = v0 - Vec3A::from(p[1]);
-        let e2 = Vec3A::from(p[2]) - v0;
-        Tri {
-            v0,
-            e1,
-            e2,
-            n: e1.cross(e2),
-        }
-    }
-
-    /// (t, u, v) of the hit, with hit = (1−u−v)·p0 + u·p1 + v·p2, or None.
-    #[inline(always)]
-    fn intersect(&self, ray: &Ray) -> Option<(f32, f32, f32)> {
-        let c = self.v0 - ray.origin;
-        let r = ray.direction.cross(c);
-        let det = self.n.dot(ray.direction);
-        if det == 0.0 {
-            return None;
-        }
-        let inv = 1.0 / det;
-        let u = r.dot(self.e2) * inv;
-        let v = r.dot(self.e1) * inv;
-        if u < 0.0 || v < 0.0 || u + v > 1.0 {
-            return None;
-        }
-        let t = self.n.dot(c) * inv;
-        (t >= ray.tmin && t <= ray.tmax).then_some((t, u, v))
-    }
 }
 
 /// One masked material's alpha: (texture slot in `Cutouts::textures` and
@@ -126,27 +84,9 @@ pub(crate) fn obvhs_triangles(geometry: &Geometry) -> Vec<Triangle> {
         .collect()
 }
 
-/// How far behind its origin every ray starts. obvhs's CWBVH box test
-/// clamps a box's entry distance to at least 1e-4 (`cwbvh::node::EPSILON`,
-/// an absolute distance), so a node left within 0.1 mm of the origin is
-/// culled: a ray leaving a wall's foot into the floor it stands on went
-/// through the corner (44 of 75,776 Cornell form-factor rays leaked). obvhs
-/// traverses the ray started 0.2 mm back with `tmin` = 0.2 mm (the same
-/// segment, every box exit past the clamp); triangles are tested against
-/// the exact ray.
-const BACK_OFF: f32 = 2e-4;
-
-/// `dir` with −0.0 components made +0.0: obvhs picks the traversal octant
-/// from the sign bits, and a −0.0 component (e.g. −(0, −1, 0) for a light
-/// pointing straight down) made rays miss everything.
-fn positive_zeros(dir: Vec3) -> Vec3 {
-    dir + Vec3::ZERO
-}
-
 /// The scene's BVH and triangles, in BVH order.
 pub struct RayCaster {
-    bvh: CwBvh,
-    tris: Vec<Tri>,
+    bvh: Bvh4,
     /// BVH order → global triangle id.
     ids: Vec<u32>,
     /// BVH order → material, for masked triangles only (`u32::MAX` otherwise).
@@ -162,19 +102,22 @@ impl RayCaster {
     }
 
     /// Builds the BVH over `geometry` with obvhs build settings `params`
-    /// (for the benchmarks, which compare presets).
+    /// (for the benchmarks, which compare presets); leaves are capped at
+    /// 4 triangles (one SIMD packet).
     pub fn with_params(scene: &Scene, geometry: &Geometry, params: BvhBuildParams) -> RayCaster {
-        let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+        let params = BvhBuildParams {
+            max_prims_per_leaf: params.max_prims_per_leaf.min(4),
+            ..params
+        };
+        let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
             &obvhs_triangles(geometry),
             params,
             &mut Duration::default(),
         );
         let cutouts = Cutouts::new(scene);
-        let ids: Vec<u32> = bvh.primitive_indices.clone();
-        let ordered: Vec<Tri> = ids
-            .iter()
-            .map(|&g| Tri::new(&geometry.p_ws[g as usize]))
-            .collect();
+        let ids: Vec<u32> = bvh2.primitive_indices.clone();
+        let ordered: Vec<[Vec3; 3]> = ids.iter().map(|&g| geometry.p_ws[g as usize]).collect();
+        let bvh = Bvh4::new(&bvh2, &ordered);
         let masked_material = ids
             .iter()
             .map(|&g| {
@@ -189,7 +132,6 @@ impl RayCaster {
         let uv0 = ids.iter().map(|&g| geometry.uv0[g as usize]).collect();
         RayCaster {
             bvh,
-            tris: ordered,
             ids,
             masked_material,
             uv0,
@@ -197,85 +139,46 @@ impl RayCaster {
         }
     }
 
+    /// False where BVH-order triangle `k` is cut out (alpha mask) at
+    /// barycentrics (u, v).
     #[inline(always)]
-    fn test(&self, k: usize, ray: &Ray) -> Option<(f32, f32, f32)> {
-        let (t, u, v) = self.tris[k].intersect(ray)?;
-        let m = self.masked_material[k];
-        if m != u32::MAX {
-            let uv = self.uv0[k];
-            let uv0 = uv[0] * (1.0 - u - v) + uv[1] * u + uv[2] * v;
-            if self.cutouts.is_cut(m, uv0) {
-                return None;
-            }
+    fn keep(&self, k: u32, u: f32, v: f32) -> bool {
+        let m = self.masked_material[k as usize];
+        if m == u32::MAX {
+            return true;
         }
-        Some((t, u, v))
-    }
-
-    /// The rays for `origin + t·dir`, `t ∈ [0, tmax]`: the one obvhs
-    /// traverses, started [`BACK_OFF`] behind `origin` (so every node box on
-    /// the segment is left after obvhs's box-entry clamp), and the exact one
-    /// the triangles are tested against (so hit distances and barycentrics
-    /// keep full precision; distances are handed to obvhs shifted by
-    /// `BACK_OFF`, in its ray's terms).
-    fn rays(origin: Vec3, dir: Vec3, tmax: f32) -> (Ray, Ray) {
-        let dir = positive_zeros(dir);
-        let traversed = Ray::new(
-            (origin - BACK_OFF * dir).into(),
-            dir.into(),
-            BACK_OFF,
-            tmax + BACK_OFF,
-        );
-        let exact = Ray {
-            origin: origin.into(),
-            tmin: 0.0,
-            tmax,
-            ..traversed
-        };
-        (traversed, exact)
+        let uv = self.uv0[k as usize];
+        !self
+            .cutouts
+            .is_cut(m, uv[0] * (1.0 - u - v) + uv[1] * u + uv[2] * v)
     }
 
     /// The closest hit along `origin + t·dir`, `t ∈ [0, tmax]` (`dir` unit).
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        let (ray, exact) = Self::rays(origin, dir, tmax);
-        let mut hit = obvhs::ray::RayHit::none();
-        let mut best = (0.0f32, 0.0f32, 0.0f32);
-        let found = self
-            .bvh
-            .ray_traverse(ray, &mut hit, |r, k| match self.test(k, &exact) {
-                Some((t, u, v)) => {
-                    let shifted = t + BACK_OFF;
-                    if shifted < r.tmax {
-                        best = (t, u, v);
-                    }
-                    shifted
-                }
-                None => f32::INFINITY,
-            });
-        found.then(|| Hit {
-            tri: self.ids[hit.primitive_id as usize],
-            t: best.0,
-            u: best.1,
-            v: best.2,
-        })
+        self.bvh
+            .closest_hit(origin, dir, tmax, |k, u, v| self.keep(k, u, v))
+            .map(|(k, t, u, v)| Hit {
+                tri: self.ids[k as usize],
+                t,
+                u,
+                v,
+            })
     }
 
     /// True when nothing lies along `origin + t·dir` for `t ∈ [0, tmax]`.
     pub fn unoccluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        let (ray, exact) = Self::rays(origin, dir, tmax);
-        self.bvh.ray_traverse_miss(ray, |_, k| {
-            self.test(k, &exact)
-                .map_or(f32::INFINITY, |h| h.0 + BACK_OFF)
-        })
+        self.bvh
+            .unoccluded(origin, dir, tmax, |k, u, v| self.keep(k, u, v))
     }
 
     /// Number of triangles.
     pub fn len(&self) -> usize {
-        self.tris.len()
+        self.ids.len()
     }
 
     /// True when there are no triangles.
     pub fn is_empty(&self) -> bool {
-        self.tris.is_empty()
+        self.ids.is_empty()
     }
 }
 
@@ -342,16 +245,29 @@ mod tests {
         };
         let g = random_geometry(2000, 3);
         let rc = RayCaster::new(&scene, &g);
-        let brute: Vec<Tri> = g.p_ws.iter().map(Tri::new).collect();
+        // Textbook Möller–Trumbore, independent of the SIMD kernel's form.
+        let brute = |p: &[Vec3; 3], o: Vec3, d: Vec3| -> Option<(f32, f32, f32)> {
+            let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+            let h = d.cross(e2);
+            let a = e1.dot(h);
+            if a.abs() < 1e-12 {
+                return None;
+            }
+            let s = o - p[0];
+            let u = s.dot(h) / a;
+            let q = s.cross(e1);
+            let v = d.dot(q) / a;
+            let t = e2.dot(q) / a;
+            (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t >= 0.0).then_some((t, u, v))
+        };
         let mut s = Stream::new(9, 0, 0);
         let mut hits = 0;
         for _ in 0..2000 {
             let o = Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) * 12.0 - 1.0;
             let d = (Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) - 0.5).normalize();
-            let ray = Ray::new(o.into(), d.into(), 0.0, f32::INFINITY);
             let mut best: Option<(f32, u32, f32, f32)> = None;
-            for (i, t) in brute.iter().enumerate() {
-                if let Some((tt, u, v)) = t.intersect(&ray) {
+            for (i, p) in g.p_ws.iter().enumerate() {
+                if let Some((tt, u, v)) = brute(p, o, d) {
                     if best.is_none_or(|b| tt < b.0) {
                         best = Some((tt, i as u32, u, v));
                     }
@@ -364,6 +280,7 @@ mod tests {
                     hits += 1;
                     assert_eq!(b.1, h.tri);
                     assert!((b.0 - h.t).abs() < 1e-4);
+                    assert!((b.2 - h.u).abs() < 1e-3 && (b.3 - h.v).abs() < 1e-3);
                     // Barycentrics reconstruct the hit point.
                     let p = g.point(h.tri, h.u, h.v);
                     assert!((p - (o + d * h.t)).length() < 1e-3);
