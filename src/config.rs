@@ -79,7 +79,7 @@ pub enum Method {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Device {
-    /// CPU threads (obvhs CWBVH).
+    /// CPU threads (radbake's SIMD BVH4).
     Cpu,
     /// A wgpu compute shader (falls back to the CPU, with a warning, where no adapter exists).
     Gpu,

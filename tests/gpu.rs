@@ -1,5 +1,5 @@
 //! `--device gpu`: form-factor rays cast by a wgpu compute shader
-//! (`shaders/raycast.wgsl`) must agree with the CPU's obvhs traversal.
+//! (`shaders/raycast.wgsl`) must agree with the CPU ray caster.
 //!
 //! Needs an adapter; Mesa's lavapipe (software Vulkan, installed by
 //! `.ci/run`) is enough. Where none exists the GPU tests print why and
@@ -50,7 +50,7 @@ fn raycast_shader_validates() {
 }
 
 /// 20,000 random rays inside the Cornell box (and some from outside, which
-/// miss or hit the outer faces): the GPU finds the same triangle as obvhs
+/// miss or hit the outer faces): the GPU finds the same triangle as the CPU
 /// for all but a couple (ties at shared edges), at the same distance.
 #[test]
 fn gpu_closest_hits_match_cpu() {

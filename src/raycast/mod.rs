@@ -71,7 +71,7 @@ impl Cutouts {
 }
 
 /// `geometry`'s world-space triangles as obvhs builds its BVHs from them
-/// (the CPU's CWBVH here, the GPU's BVH2 in `gpu.rs`).
+/// (the CPU's BVH4 here, the GPU's BVH2 in `gpu.rs`).
 pub(crate) fn obvhs_triangles(geometry: &Geometry) -> Vec<Triangle> {
     geometry
         .p_ws

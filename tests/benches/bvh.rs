@@ -1,4 +1,4 @@
-//! BVH build (`RayCaster::new`: obvhs CWBVH, PLOC, medium preset) over the
+//! BVH build (`RayCaster::new`: obvhs PLOC, medium preset, collapsed into radbake's BVH4) over the
 //! generated level at ~25 k and ~1 M triangles; throughput in triangles.
 //!
 //!     cargo bench --bench bvh
