@@ -4,7 +4,8 @@
 //!
 //! From points spread over the texel, N stratified cosine-weighted rays;
 //! at each hit the outgoing radiance of the surface there is read from the
-//! first pass: E′ + ρ(hit) × H₁(hit texel), where H₁ is the first-pass
+//! first pass: E′ + ρ̄ × H₁ of the hit texel, where ρ̄ is the texel's mean
+//! albedo (over its footprint) and H₁ the first-pass
 //! lightmap (the texel's own direct light, sharp, plus the interpolated
 //! patch indirect light) and E′ the emission not already sampled as direct
 //! light. The texel's final value is D (its direct light) + the gathered
@@ -84,6 +85,16 @@ pub fn gather(
     let n = s.texels.len();
     let g = s.geometry;
     let chunk = 256;
+    // Light a hit reflects: the hit texel's mean albedo (over its footprint,
+    // see `texels`) × its first-pass irradiance / π. One lookup per hit, and
+    // no texture detail finer than a texel adds noise to the gather.
+    let reflected: Vec<Vec3> = s
+        .texels
+        .albedo
+        .iter()
+        .zip(first_pass)
+        .map(|(&rho, &h)| rho * h)
+        .collect();
     type Texel = (Vec3, bool, f32, Directional, f32, u32, Vec3);
     let parts: Vec<Vec<Texel>> = (0..n.div_ceil(chunk))
         .into_par_iter()
@@ -130,8 +141,7 @@ pub fn gather(
                             let tri = hit.tri as usize;
                             let m = g.material[tri];
                             let uv0 = g.uv0_at(hit.tri, hit.u, hit.v);
-                            let albedo = s.scene.albedo_at(m, uv0).0;
-                            let mut l = albedo * first_pass[h as usize];
+                            let mut l = reflected[h as usize];
                             let front = g.ng_ws[tri].dot(dir) < 0.0;
                             if front && !sampled[m as usize] {
                                 l += s.scene.emission_at(m, uv0);

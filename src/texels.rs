@@ -152,6 +152,65 @@ pub fn barycentric(t: &[Vec2; 3], p: Vec2) -> Vec3 {
     Vec3::new(1.0 - w1 - w2, w1, w2)
 }
 
+/// Supersampling grid per texel side for textured materials.
+const FOOTPRINT_GRID: u32 = 4;
+
+/// Stream purpose id of the footprint samples.
+const FOOTPRINT_PURPOSE: u64 = 10;
+
+/// Mean albedo and emission of a textured `material` over the part of texel
+/// `xy` that triangle `t` (lightmap corners `lm`) covers: a box filter
+/// over the texel's footprint, from 4 × 4 jittered stratified points in the texel
+/// that fall inside the triangle and are not cut out. The final gather
+/// reads a hit's outgoing radiance as texel albedo × texel irradiance, so
+/// this is the mean of ρ over the texel, not a point sample of a texture
+/// that can vary much faster than the texels do (a 25 cm texel spans
+/// dozens of texture pixels). `None` for untextured materials (the point
+/// value is exact) and when no grid point lands in the piece.
+fn footprint_mean(
+    scene: &Scene,
+    material: u32,
+    geometry: &Geometry,
+    t: u32,
+    lm: &[Vec2; 3],
+    xy: [i64; 2],
+) -> Option<(Vec3, Vec3)> {
+    let m = &scene.materials[material as usize];
+    if m.albedo_texture.is_none() && m.emission_texture.is_none() {
+        return None;
+    }
+    let (mut albedo, mut emission, mut count) = (Vec3::ZERO, Vec3::ZERO, 0u32);
+    let step = 1.0 / FOOTPRINT_GRID as f32;
+    // Jittered, not regular: a regular grid aliases with regular textures
+    // (a fine checker can put every grid point on one colour).
+    let item = ((t as u64) << 32) ^ ((xy[1] as u64 & 0xffff) << 16) ^ (xy[0] as u64 & 0xffff);
+    let mut rng = crate::sampling::Stream::new(0, FOOTPRINT_PURPOSE, item);
+    for j in 0..FOOTPRINT_GRID {
+        for i in 0..FOOTPRINT_GRID {
+            let r = rng.next_vec2();
+            let p = Vec2::new(
+                xy[0] as f32 + (i as f32 + r.x) * step,
+                xy[1] as f32 + (j as f32 + r.y) * step,
+            );
+            let w = barycentric(lm, p);
+            if w.min_element() < 0.0 {
+                continue;
+            }
+            let uv0 = geometry.uv0_at(t, w.y, w.z);
+            let (rho, alpha) = scene.albedo_at(material, uv0);
+            if let crate::scene::Alpha::Mask { cutoff } = m.alpha {
+                if alpha < cutoff {
+                    continue;
+                }
+            }
+            albedo += rho;
+            emission += scene.emission_at(material, uv0);
+            count += 1;
+        }
+    }
+    (count > 0).then(|| (albedo / count as f32, emission / count as f32))
+}
+
 #[derive(Clone, Copy, Default)]
 struct Accum {
     area: f32,
@@ -232,8 +291,16 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
                         cell.area += a;
                         cell.p += geometry.point(t as u32, u, v) * a;
                         cell.n += geometry.ng_ws[t] * a;
-                        cell.albedo += scene.albedo_at(material, uv0).0 * a;
-                        cell.emission += scene.emission_at(material, uv0) * a;
+                        let (albedo, emission) =
+                            footprint_mean(scene, material, geometry, t as u32, &lm, [x, y])
+                                .unwrap_or_else(|| {
+                                    (
+                                        scene.albedo_at(material, uv0).0,
+                                        scene.emission_at(material, uv0),
+                                    )
+                                });
+                        cell.albedo += albedo * a;
+                        cell.emission += emission * a;
                     }
                 }
                 if !covered {
