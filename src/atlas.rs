@@ -6,7 +6,7 @@
 //! `rect.min + uv · (rect.max − rect.min)`, Bevy's `Lightmap::uv_rect`
 //! convention. `--uv existing` repacks the input `TEXCOORD_1` islands instead.
 
-use crate::config::{BakeConfig, UvSource};
+use crate::config::{BakeConfig, Packing, UvSource};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
 use glam::Vec2;
@@ -199,6 +199,10 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
             page_size: None,
         },
         padding: config.padding,
+        packing: match config.packing {
+            Packing::Fast => uvunwrap::Packing::Fast,
+            Packing::Shape => uvunwrap::Packing::Shape,
+        },
         ..uvunwrap::Options::default()
     };
     // A safety net: `uvunwrap` has been seen to panic on geometry the checks

@@ -7,7 +7,7 @@ use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use radbake::config::{
-    DirectionalMode, EmitterSampling, FormFactorMethod, Method, Preset, Solver, UvSource,
+    DirectionalMode, EmitterSampling, FormFactorMethod, Method, Packing, Preset, Solver, UvSource,
 };
 use radbake::report::StageTime;
 use radbake::BakeConfig;
@@ -355,6 +355,9 @@ struct BakeArgs {
     /// Lightmap UVs: unwrap, or repack the input's TEXCOORD_1 [default: unwrap].
     #[arg(long, value_enum)]
     uv: Option<UvSource>,
+    /// Chart packing: fast (rows), or shape (nested shapes, slower) [default: fast].
+    #[arg(long, value_enum)]
+    packing: Option<Packing>,
     /// Form-factor method [default: raycast].
     #[arg(long, value_enum)]
     form_factors: Option<FormFactorMethod>,
@@ -474,6 +477,7 @@ impl BakeArgs {
             tolerance,
             max_iterations,
             uv,
+            packing,
             form_factors,
             hemicube_resolution,
             solver,

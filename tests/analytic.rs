@@ -247,9 +247,18 @@ fn cornell_box_sane() {
         );
         assert!(energy.reflected_escaped[c] > 0.0);
     }
-    // Reciprocity between instances: A_I F_IJ = A_J F_JI within 3 % where F_IJ > 0.05.
+    // Reciprocity between instances: A_I F_IJ = A_J F_JI where F_IJ > 0.05,
+    // within 3 % or four standard errors of the two ray estimates, whichever
+    // is larger (the light has 11 patches: its F to the short block rests on
+    // ~150 of its 2,816 rays, σ ≈ 12 %; binomial errors, which stratified
+    // rays beat, so the bound is loose, never tight).
     let p = &bake.patches;
     let n = scene.instances.len();
+    let rays_per_patch = BakeConfig::default().rays_per_patch as f64;
+    let mut rays = vec![0.0f64; n];
+    for k in &p.key {
+        rays[k.0 as usize] += rays_per_patch;
+    }
     let mut af = vec![vec![0.0f64; n]; n];
     for (i, row) in bake
         .form_factors
@@ -268,13 +277,18 @@ fn cornell_box_sane() {
         for b in a + 1..n {
             if af[a][b] > 0.05 * reports[a].area {
                 let err = (af[a][b] - af[b][a]).abs() / af[a][b];
+                // Relative standard error of a binomial fraction F from N rays.
+                let se = |i: usize, f: f64| ((1.0 - f).max(0.0) / (f * rays[i])).sqrt();
+                let (fab, fba) = (af[a][b] / reports[a].area, af[b][a] / reports[b].area);
+                let sigma = (se(a, fab).powi(2) + se(b, fba).powi(2)).sqrt();
                 assert!(
-                    err < 0.03,
-                    "{} / {}: {} vs {}",
+                    err < (4.0 * sigma).max(0.03),
+                    "{} / {}: {} vs {} (σ {:.3})",
                     reports[a].node,
                     reports[b].node,
                     af[a][b],
-                    af[b][a]
+                    af[b][a],
+                    sigma
                 );
                 checked += 1;
             }

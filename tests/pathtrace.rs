@@ -292,7 +292,8 @@ fn instance_means(bake: &radbake::Bake) -> Vec<(String, Vec3)> {
 }
 
 /// Reference lightmaps: the radiosity bake's per-instance means within 1 %
-/// of path tracing from every texel (256 paths each), at patch size 2 (at
+/// (the small light 2 %, see below) of path tracing from every texel (256
+/// paths each), at patch size 2 (at
 /// the default 4 the worst instance is 0.98 % off; README), and its texels
 /// within 8 % RMSE of the reference's mean (the reference's own noise
 /// included). Photon mapping within 3 % per instance.
@@ -328,8 +329,12 @@ fn reference_lightmaps_on_cornell() {
     let reference = instance_means(&pt);
     for ((name, r), (_, p)) in instance_means(&radiosity).iter().zip(&reference) {
         let e = rel(*r, *p);
+        // The light's 208 texels leave both estimates noisy: over seeds 1-4
+        // its path-traced mean ranged 0.1907-0.1945 (±1 %) and the bake's
+        // 0.1911-0.1936, so it gets 2 %; every other instance 1 %.
+        let tolerance = if name == "light" { 0.02 } else { 0.01 };
         assert!(
-            e < 0.01,
+            e < tolerance,
             "{name}: radiosity {r} vs path traced {p}: {:.2} %",
             e * 100.0
         );
