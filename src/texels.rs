@@ -99,16 +99,20 @@ impl Texels {
 }
 
 /// Area and centroid of triangle `t` clipped to the unit square at `(x, y)`.
+///
+/// Computed in the texel's own frame (corner at the origin): the shoelace
+/// sums products of coordinates, and at atlas coordinates in the thousands
+/// an f32 product carries an absolute error near 0.1 texel², as large as
+/// the area being measured. Texels far from the atlas origin used to get
+/// garbage areas and centroids (a Sponza drape's texel placed 150 m away,
+/// lit by the sun there), which moved with the chart packing.
 fn clip_to_texel(t: &[Vec2; 3], x: f32, y: f32) -> Option<(f32, Vec2)> {
-    let mut poly: Vec<Vec2> = t.to_vec();
+    let origin = Vec2::new(x, y);
+    let mut poly: Vec<Vec2> = t.iter().map(|&p| p - origin).collect();
     let mut next: Vec<Vec2> = Vec::with_capacity(8);
-    // Four half-planes: x ≥ x0, x ≤ x0+1, y ≥ y0, y ≤ y0+1.
-    let planes: [(usize, f32, f32); 4] = [
-        (0, x, 1.0),
-        (0, x + 1.0, -1.0),
-        (1, y, 1.0),
-        (1, y + 1.0, -1.0),
-    ];
+    // Four half-planes: x ≥ 0, x ≤ 1, y ≥ 0, y ≤ 1 (texel frame).
+    let planes: [(usize, f32, f32); 4] =
+        [(0, 0.0, 1.0), (0, 1.0, -1.0), (1, 0.0, 1.0), (1, 1.0, -1.0)];
     for (axis, bound, sign) in planes {
         next.clear();
         let inside = |p: Vec2| (p[axis] - bound) * sign >= 0.0;
@@ -141,7 +145,7 @@ fn clip_to_texel(t: &[Vec2; 3], x: f32, y: f32) -> Option<(f32, Vec2)> {
     if a2.abs() <= 1e-12 {
         return None;
     }
-    Some((0.5 * a2.abs(), c / (3.0 * a2)))
+    Some((0.5 * a2.abs(), origin + c / (3.0 * a2)))
 }
 
 /// Barycentric weights (w0, w1, w2) of `p` in triangle `t` (2D).
@@ -378,6 +382,50 @@ mod tests {
         let (a, c) = clip_to_texel(&half, 0.0, 0.0).unwrap();
         assert!((a - 0.5).abs() < 1e-6 && (c - Vec2::splat(1.0 / 3.0)).length() < 1e-5);
         assert!(clip_to_texel(&half, 3.0, 3.0).is_none());
+    }
+
+    /// Far from the atlas origin the clip is as exact as near it (regression:
+    /// the shoelace on absolute coordinates lost the area to f32 rounding).
+    /// Triangles of a Sponza drape near texel (1137, 1509) of a 1260 × 1704
+    /// atlas, against the same triangles moved (exactly) to texel (0, 0).
+    #[test]
+    fn clip_far_from_the_origin() {
+        let far = [
+            [
+                (1137.2583, 1508.9515),
+                (1137.2177, 1509.364),
+                (1136.9434, 1509.2998),
+            ],
+            [
+                (1137.0109, 1508.8938),
+                (1136.6068, 1509.2177),
+                (1136.7118, 1508.8007),
+            ],
+            [
+                (1136.9434, 1509.2998),
+                (1136.6056, 1509.6346),
+                (1136.6068, 1509.2177),
+            ],
+        ];
+        for tri in far {
+            let t = tri.map(|(a, b)| Vec2::new(a, b));
+            let mid = (t[0] + t[1] + t[2]) / 3.0;
+            let (x, y) = (mid.x.floor(), mid.y.floor());
+            let local = t.map(|p| p - Vec2::new(x, y));
+            let (a_far, c_far) = clip_to_texel(&t, x, y).unwrap();
+            let (a_near, c_near) = clip_to_texel(&local, 0.0, 0.0).unwrap();
+            assert!(
+                (a_far - a_near).abs() <= 1e-6 * a_near.max(1.0),
+                "{a_far} vs {a_near}"
+            );
+            assert!(
+                (c_far - Vec2::new(x, y) - c_near).length() < 1e-4,
+                "{c_far} vs {c_near}"
+            );
+            // The centroid lies inside its triangle.
+            let w = barycentric(&t, c_far);
+            assert!(w.min_element() > -1e-3, "{w}");
+        }
     }
 
     /// Exact coverage conserves area: a thin sliver still covers its texels

@@ -589,3 +589,80 @@ fn gather_rays_give_the_same_direct_light() {
         }
     }
 }
+
+/// Texels far from the atlas origin are placed where their surface is
+/// (regression: the clip's shoelace ran on absolute atlas coordinates in
+/// f32, and at coordinates in the hundreds its rounding error was a good
+/// part of a texel's area: Sponza's texels got centroids up to 150 m off
+/// their surfaces, lit by the sun there, and areas that no longer summed to
+/// the surface's). A 30 m × 30 m floor in 200 triangles at 25 texels/m is
+/// one 750-texel-wide chart: every texel centroid must lie on the floor,
+/// within its texel's reach of the triangle it came from, no texel may hold
+/// more than a texel's area, and the areas must sum to 900 m².
+#[test]
+fn texels_far_from_the_atlas_origin() {
+    let dir = temp_dir("far-texels");
+    let mut b = GltfBuilder::default();
+    let (cells, size) = (10u32, 30.0f32);
+    let mut p = Vec::new();
+    let mut i = Vec::new();
+    for z in 0..=cells {
+        for x in 0..=cells {
+            let s = size / cells as f32;
+            p.push([x as f32 * s - size / 2.0, 0.0, z as f32 * s - size / 2.0]);
+        }
+    }
+    for z in 0..cells {
+        for x in 0..cells {
+            let k = z * (cells + 1) + x;
+            i.extend([k, k + cells + 1, k + 1, k + 1, k + cells + 1, k + cells + 2]);
+        }
+    }
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let path = dir.join("floor.gltf");
+    b.write(&path);
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let density = 25.0;
+    let config = BakeConfig {
+        texels_per_meter: density,
+        ..BakeConfig::default()
+    };
+    let atlas = radbake::atlas::unwrap(&scene, &config).unwrap();
+    assert!(
+        atlas.width.max(atlas.height) >= 700,
+        "{}×{}",
+        atlas.width,
+        atlas.height
+    );
+    let geometry = radbake::geometry::Geometry::new(&scene, &atlas);
+    let texels = radbake::texels::rasterize(&scene, &atlas, &geometry);
+    let full = 1.0 / (density * density);
+    let reach = 1.5 / density;
+    let mut total = 0.0f64;
+    for t in 0..texels.len() {
+        let q = texels.p_ws[t];
+        assert!(
+            q.y.abs() < 1e-4 && q.x.abs() <= 15.0 + 1e-3 && q.z.abs() <= 15.0 + 1e-3,
+            "texel {t} at {q}"
+        );
+        let tri = geometry.p_ws[texels.triangle[t] as usize];
+        let c = (tri[0] + tri[1] + tri[2]) / 3.0;
+        let r = tri.iter().map(|v| v.distance(c)).fold(0.0f32, f32::max);
+        assert!(
+            q.distance(c) <= r + reach,
+            "texel {t} at {q}, its triangle around {c}"
+        );
+        assert!(
+            texels.area[t] <= full * 1.001,
+            "texel {t}: area {} > {full}",
+            texels.area[t]
+        );
+        total += texels.area[t] as f64;
+    }
+    assert!(
+        (total - 900.0).abs() < 0.01,
+        "texel areas sum to {total} m²"
+    );
+}
