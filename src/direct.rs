@@ -259,7 +259,7 @@ pub fn hemisphere_light(
 }
 
 /// Direct irradiance / π over a texel: punctual lights exactly at its
-/// `centre` (point and normal; one shadow ray each), emitters by one light
+/// `centre` (point, normal and a weight; one shadow ray each), emitters by one light
 /// sample from each of `points` (positions spread over the texel, so the
 /// estimate is the texel's average), sky and emitters by one
 /// cosine-weighted ray from each of `hemisphere` points; the two emitter
@@ -270,7 +270,7 @@ pub fn direct_at(
     s: &Surfaces,
     lights: &Lights,
     mis: Mis,
-    punctual_points: &[(Vec3, Vec3)],
+    punctual_points: &[(Vec3, Vec3, f32)],
     points: &[(Vec3, Vec3)],
     hemisphere: &[(Vec3, Vec3)],
     rng: &mut Stream,
@@ -284,8 +284,9 @@ pub fn direct_at(
     // directional part (see [`Directional`]) is exact: a light of
     // irradiance/π h from ω adds h/cos θ · ω.
     let mut dir_part: Directional = [Vec3::ZERO; 3];
-    let w = 1.0 / punctual_points.len().max(1) as f32;
-    for &(p, n) in punctual_points {
+    let w0 = 1.0 / punctual_points.len().max(1) as f32;
+    for &(p, n, scale) in punctual_points {
+        let w = w0 * scale;
         let origin = offset_ray_origin(p, n);
         for light in &lights.punctual {
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
@@ -413,7 +414,8 @@ impl Direct {
 }
 
 /// Direct light at every texel (see [`direct_at`]): area lights and sky
-/// averaged over the texel, punctual lights at its centroid; `samples`
+/// averaged over the texel, punctual lights at its centroid (on the
+/// surface, see [`crate::texels::Texels::centroid_lm`]); `samples`
 /// light samples and `hemisphere` hemisphere rays per texel, emitters
 /// weighted by `mis`.
 ///
@@ -441,12 +443,28 @@ pub fn texels(
             let mut rays = 0;
             for t in range {
                 let mut rng = Stream::new(seed, PURPOSE, t as u64);
+                // The centroid of the texel's coverage in lightmap space,
+                // mapped onto its triangle: on the surface. The world
+                // centroid of a folded or curved texel lies off it (Sponza's
+                // roof tiles: inside them, in their own shadow, 5 % dark
+                // against the path tracer), and the texel's centre clamped
+                // onto its triangle sits on the edge of a partly covered
+                // texel, at the foot of the next wall.
                 let centre = if supersample <= 1 {
-                    vec![(s.texels.p_ws[t], s.texels.n_ws[t])]
+                    // …with the texel's mean normal and its length, so the
+                    // cosine is the texel's area-weighted mean cosine
+                    // (exact for a lit texel whose pieces face different
+                    // ways, where one piece's normal is not).
+                    let (p, _) = s.sample_texel(t as u32, s.texels.centroid_lm[t]);
+                    vec![(p, s.texels.n_ws[t], s.texels.cos_scale[t])]
                 } else {
                     let m = supersample * supersample;
                     (0..m)
-                        .map(|k| s.sample_texel(t as u32, stratified(k, m, Vec2::splat(0.5))))
+                        .map(|k| {
+                            let (p, n) =
+                                s.sample_texel(t as u32, stratified(k, m, Vec2::splat(0.5)));
+                            (p, n, 1.0)
+                        })
                         .collect()
                 };
                 let mut spread = |count: u32| -> Vec<(Vec3, Vec3)> {

@@ -31,6 +31,48 @@ const PURPOSE: u64 = 3;
 /// A texel is invalid when more than this fraction of its rays hit back faces.
 pub const BACKFACE_TOLERANCE: f32 = 0.1;
 
+/// Rays per texel of the validity estimate made before the gather.
+pub const VALIDITY_RAYS: u32 = 8;
+
+/// Stream purpose id of the validity estimate's rays.
+const VALIDITY_PURPOSE: u64 = 11;
+
+/// A cheap first estimate of texel validity (the gather's rule on `rays`
+/// stratified cosine rays per texel, stopping once the texel is invalid),
+/// so texels buried in geometry can be filled in the first-pass lightmap
+/// before the gather reads it. Returns the validity and the rays cast.
+pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<bool>, u64) {
+    let n = s.texels.len();
+    let chunk = 1024;
+    let parts: Vec<(Vec<bool>, u64)> = (0..n.div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
+            let range = c * chunk..((c + 1) * chunk).min(n);
+            let mut out = Vec::with_capacity(range.len());
+            let mut cast = 0u64;
+            for t in range {
+                let mut rng = Stream::new(seed, VALIDITY_PURPOSE, t as u64);
+                let mut back = 0u32;
+                for k in 0..rays {
+                    if back as f32 > BACKFACE_TOLERANCE * rays as f32 {
+                        break;
+                    }
+                    cast += 1;
+                    let (p, ng) = s.sample_texel(t as u32, stratified(k, rays, rng.next_vec2()));
+                    let dir = to_world(cosine_hemisphere(stratified(k, rays, rng.next_vec2())), ng);
+                    if let (Landing::BackFace, _) = s.trace(offset_ray_origin(p, ng), dir) {
+                        back += 1;
+                    }
+                }
+                out.push(back as f32 <= BACKFACE_TOLERANCE * rays as f32);
+            }
+            (out, cast)
+        })
+        .collect();
+    let rays = parts.iter().map(|p| p.1).sum();
+    (parts.into_iter().flat_map(|p| p.0).collect(), rays)
+}
+
 /// The gathered indirect light.
 #[derive(Clone, Debug, Default)]
 pub struct Gathered {

@@ -61,6 +61,8 @@ pub struct Counts {
     pub rays_form_factors: u64,
     /// Rays cast for direct light (shadow and hemisphere rays).
     pub rays_direct: u64,
+    /// Rays cast by the validity estimate before the final gather.
+    pub rays_validity: u64,
     /// Rays cast by the final gather.
     pub rays_gather: u64,
     /// Form-factor rays that left the scene.
@@ -170,6 +172,7 @@ impl Report {
             "form_factors" if !progressive => c.rays_form_factors,
             "solve" if progressive => c.rays_form_factors,
             "direct" => c.rays_direct,
+            "validity" => c.rays_validity,
             "final_gather" => c.rays_gather,
             _ => 0,
         }

@@ -27,12 +27,22 @@ pub struct Texels {
     pub chart: Vec<u32>,
     /// Triangle covering most of the texel.
     pub triangle: Vec<u32>,
-    /// Area-weighted centroid (world).
+    /// Area-weighted centroid (world). Off the surface where the texel
+    /// covers a fold or a curve; see [`Texels::centroid_lm`].
     pub p_ws: Vec<Vec3>,
+    /// Area-weighted centroid of the covered part of the texel in lightmap
+    /// space, relative to the texel's corner (in [0, 1]²): mapped through
+    /// the texel's triangle it gives a point *on* the surface, inside the
+    /// coverage (where the direct light's single sample goes).
+    pub centroid_lm: Vec<Vec2>,
     /// Area-weighted geometric normal (world, unit).
     pub n_ws: Vec<Vec3>,
     /// Covered world area (m²).
     pub area: Vec<f32>,
+    /// |Σ aᵢ nᵢ| / Σ aᵢ over the texel's pieces: the factor by which a
+    /// light's mean cosine over the texel falls short of its cosine with
+    /// [`Texels::n_ws`] (1 for a flat texel, less where it spans a curve).
+    pub cos_scale: Vec<f32>,
     /// Area-weighted albedo ρ.
     pub albedo: Vec<Vec3>,
     /// Area-weighted emitted radiance.
@@ -222,6 +232,7 @@ struct Accum {
     tri: u32,
     chart: u32,
     p: Vec3,
+    c_lm: Vec2,
     n: Vec3,
     albedo: Vec3,
     emission: Vec3,
@@ -294,6 +305,7 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
                         }
                         cell.area += a;
                         cell.p += geometry.point(t as u32, u, v) * a;
+                        cell.c_lm += (centroid - Vec2::new(x as f32, y as f32)) * a;
                         cell.n += geometry.ng_ws[t] * a;
                         let (albedo, emission) =
                             footprint_mean(scene, material, geometry, t as u32, &lm, [x, y])
@@ -350,9 +362,12 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
             tx.chart.push(c.chart);
             tx.triangle.push(c.tri);
             tx.p_ws.push(c.p / c.area);
+            tx.centroid_lm
+                .push((c.c_lm / c.area).clamp(Vec2::ZERO, Vec2::ONE));
             tx.n_ws
                 .push(c.n.normalize_or(geometry.ng_ws[c.tri as usize]));
             tx.area.push(c.area);
+            tx.cos_scale.push((c.n.length() / c.area).min(1.0));
             tx.albedo.push(c.albedo / c.area);
             tx.emission.push(c.emission / c.area);
         }

@@ -219,7 +219,15 @@ fn stats_prints_stages_rays_and_peak_memory() {
         c["rays"].as_u64().unwrap(),
         c["rays_form_factors"].as_u64().unwrap()
             + c["rays_direct"].as_u64().unwrap()
+            + c["rays_validity"].as_u64().unwrap()
             + c["rays_gather"].as_u64().unwrap()
+    );
+    // The validity estimate before the gather: at most 8 rays per texel,
+    // fewer for texels found buried early.
+    let validity = c["rays_validity"].as_u64().unwrap();
+    assert!(
+        validity > 0 && validity <= 8 * texels,
+        "{validity} validity rays"
     );
 }
 
