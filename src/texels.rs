@@ -14,6 +14,22 @@ use rayon::prelude::*;
 /// Marks an empty texel in [`Texels::index`].
 pub const EMPTY: u32 = u32::MAX;
 
+/// The part of a texel one triangle covers: where a texel spans a curve or
+/// a fold, its pieces face different ways (and its world centroid lies off
+/// the surface), so light that depends on the normal is evaluated per piece.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Piece {
+    /// World triangle.
+    pub tri: u32,
+    /// Barycentrics (of vertices 1 and 2) of the piece's centroid: a point
+    /// on the surface, inside the piece.
+    pub u: f32,
+    /// See `u`.
+    pub v: f32,
+    /// Covered world area (m²).
+    pub area: f32,
+}
+
 /// Covered lightmap texels (struct of arrays, indexed by texel id).
 #[derive(Clone, Debug, Default)]
 pub struct Texels {
@@ -28,21 +44,17 @@ pub struct Texels {
     /// Triangle covering most of the texel.
     pub triangle: Vec<u32>,
     /// Area-weighted centroid (world). Off the surface where the texel
-    /// covers a fold or a curve; see [`Texels::centroid_lm`].
+    /// covers a fold or a curve; see [`Texels::pieces`].
     pub p_ws: Vec<Vec3>,
-    /// Area-weighted centroid of the covered part of the texel in lightmap
-    /// space, relative to the texel's corner (in [0, 1]²): mapped through
-    /// the texel's triangle it gives a point *on* the surface, inside the
-    /// coverage (where the direct light's single sample goes).
-    pub centroid_lm: Vec<Vec2>,
     /// Area-weighted geometric normal (world, unit).
     pub n_ws: Vec<Vec3>,
     /// Covered world area (m²).
     pub area: Vec<f32>,
-    /// |Σ aᵢ nᵢ| / Σ aᵢ over the texel's pieces: the factor by which a
-    /// light's mean cosine over the texel falls short of its cosine with
-    /// [`Texels::n_ws`] (1 for a flat texel, less where it spans a curve).
-    pub cos_scale: Vec<f32>,
+    /// The texel's pieces (one per triangle covering it) of texel `t` are
+    /// `pieces[piece_start[t]..piece_start[t + 1]]`.
+    pub piece_start: Vec<u32>,
+    /// Every texel's pieces, in texel order.
+    pub pieces: Vec<Piece>,
     /// Area-weighted albedo ρ.
     pub albedo: Vec<Vec3>,
     /// Area-weighted emitted radiance.
@@ -69,6 +81,11 @@ impl Texels {
     /// True when there are none.
     pub fn is_empty(&self) -> bool {
         self.page.is_empty()
+    }
+
+    /// The pieces of texel `t`.
+    pub fn pieces_of(&self, t: usize) -> &[Piece] {
+        &self.pieces[self.piece_start[t] as usize..self.piece_start[t + 1] as usize]
     }
 
     /// The texel at integer `(x, y)` of `page`, if covered.
@@ -232,7 +249,6 @@ struct Accum {
     tri: u32,
     chart: u32,
     p: Vec3,
-    c_lm: Vec2,
     n: Vec3,
     albedo: Vec3,
     emission: Vec3,
@@ -251,7 +267,7 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
         r.1 = t + 1;
     }
     // Per instance: covered cells (x, y, sums), unmapped triangles, overlaps.
-    type InstanceCells = (Vec<(u32, u32, Accum)>, u64, u64);
+    type InstanceCells = (Vec<(u32, u32, Accum, Vec<Piece>)>, u64, u64);
     let per_instance: Vec<InstanceCells> = ranges
         .par_iter()
         .enumerate()
@@ -263,6 +279,7 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
             let y1 = ((rect.max[1] * h as f32).ceil() as u32).min(h);
             let (rw, rh) = (x1.saturating_sub(x0), y1.saturating_sub(y0));
             let mut grid = vec![Accum::default(); (rw * rh) as usize];
+            let mut pieces: Vec<(u32, Piece)> = Vec::new();
             let mut unmapped = 0u64;
             let mut overlaps = 0u64;
             for t in start..end {
@@ -294,7 +311,17 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
                         }
                         covered = true;
                         let a = cov * world_per_texel;
-                        let cell = &mut grid[((y as u32 - y0) * rw + (x as u32 - x0)) as usize];
+                        let index = (y as u32 - y0) * rw + (x as u32 - x0);
+                        pieces.push((
+                            index,
+                            Piece {
+                                tri: t as u32,
+                                u,
+                                v,
+                                area: a,
+                            },
+                        ));
+                        let cell = &mut grid[index as usize];
                         if cell.area > 0.0 && cell.chart != geometry.chart[t] {
                             overlaps += 1;
                         }
@@ -305,7 +332,6 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
                         }
                         cell.area += a;
                         cell.p += geometry.point(t as u32, u, v) * a;
-                        cell.c_lm += (centroid - Vec2::new(x as f32, y as f32)) * a;
                         cell.n += geometry.ng_ws[t] * a;
                         let (albedo, emission) =
                             footprint_mean(scene, material, geometry, t as u32, &lm, [x, y])
@@ -323,12 +349,20 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
                     unmapped += 1;
                 }
             }
+            // Pieces grouped by cell, in triangle order within a cell.
+            pieces.sort_by_key(|p| p.0);
+            let mut next = pieces.iter().peekable();
             let mut out = Vec::new();
             for y in 0..rh {
                 for x in 0..rw {
-                    let c = grid[(y * rw + x) as usize];
+                    let index = y * rw + x;
+                    let mut mine = Vec::new();
+                    while let Some(&(_, p)) = next.next_if(|p| p.0 == index) {
+                        mine.push(p);
+                    }
+                    let c = grid[index as usize];
                     if c.area > 0.0 {
-                        out.push((x0 + x, y0 + y, c));
+                        out.push((x0 + x, y0 + y, c, mine));
                     }
                 }
             }
@@ -346,7 +380,7 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
         tx.unmapped_triangles += unmapped;
         tx.chart_overlaps += overlaps;
         let page = atlas.instances[inst].page;
-        for (x, y, c) in cells {
+        for (x, y, c, pieces) in cells {
             let id = tx.len() as u32;
             let slot = &mut tx.index[page as usize][(y * w + x) as usize];
             if *slot != EMPTY {
@@ -362,12 +396,14 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
             tx.chart.push(c.chart);
             tx.triangle.push(c.tri);
             tx.p_ws.push(c.p / c.area);
-            tx.centroid_lm
-                .push((c.c_lm / c.area).clamp(Vec2::ZERO, Vec2::ONE));
             tx.n_ws
                 .push(c.n.normalize_or(geometry.ng_ws[c.tri as usize]));
             tx.area.push(c.area);
-            tx.cos_scale.push((c.n.length() / c.area).min(1.0));
+            if tx.piece_start.is_empty() {
+                tx.piece_start.push(0);
+            }
+            tx.pieces.extend(pieces);
+            tx.piece_start.push(tx.pieces.len() as u32);
             tx.albedo.push(c.albedo / c.area);
             tx.emission.push(c.emission / c.area);
         }
