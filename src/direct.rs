@@ -413,29 +413,21 @@ impl Direct {
     }
 }
 
-/// Stream purpose id of the pieces' shadow-ray choices.
-const PIECES_PURPOSE: u64 = 12;
-
 /// Shadow rays per punctual light and texel, at most.
 const PIECE_RAYS: usize = 4;
 
 /// Punctual lights over texel `t` from its pieces (the triangles covering
 /// it, see [`crate::texels::Piece`]): the unshadowed irradiance is summed
 /// exactly over all pieces, each at its own point and normal,
-/// U = Σ aᵢ Eᵢ(cos θᵢ)⁺ / Σ aᵢ; the shadow rays (one per piece for up to
-/// four pieces, else four drawn stratified in proportion to aᵢ Eᵢ) estimate
-/// the lit fraction of U. Exact for an unshadowed texel however it is
-/// folded; one ray for a texel that one triangle covers. (The world
+/// U = Σ aᵢ Eᵢ(cos θᵢ)⁺ / Σ aᵢ; shadow rays from the four pieces with the
+/// largest aᵢ Eᵢ (all of them if fewer) give the lit fraction of U,
+/// weighted by aᵢ Eᵢ. Exact for an unshadowed texel however it is folded;
+/// one ray for a texel that one triangle covers. (The world
 /// centroid of a curved texel lies off the surface, in the surface's own
 /// shadow: Sponza's roof read 5 % dark that way; one piece's normal for the
 /// whole texel favours the larger, steeper facets.)
 /// Returns (irradiance / π, directional part, rays).
-pub fn pieces_direct(
-    s: &Surfaces,
-    lights: &Lights,
-    t: usize,
-    seed: u64,
-) -> (Vec3, Directional, u64) {
+pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> (Vec3, Directional, u64) {
     let g = s.geometry;
     let pieces = s.texels.pieces_of(t);
     let total: f32 = pieces.iter().map(|p| p.area).sum();
@@ -443,7 +435,6 @@ pub fn pieces_direct(
     if pieces.is_empty() || total <= 0.0 {
         return (h, dir_part, rays);
     }
-    let mut rng = Stream::new(seed, PIECES_PURPOSE, t as u64);
     let n_texel = s.texels.n_ws[t];
     // (point, normal, value, direction, distance, weight aᵢ·lum(Eᵢ)) per lit piece.
     let mut lit: Vec<(Vec3, Vec3, Vec3, Vec3, f32, f32)> = Vec::with_capacity(pieces.len());
@@ -464,37 +455,26 @@ pub fn pieces_direct(
         if lit.is_empty() {
             continue;
         }
-        // Which pieces get a shadow ray, and with what weight.
-        let mut visible = 0.0f32;
+        // Shadow rays from the (up to) four pieces that carry the most of U;
+        // their weighted lit fraction stands for the texel's. Chosen by
+        // weight, not drawn at random: drawing made the lit fraction of a
+        // texel of many small triangles vary from seed to seed (Sponza's
+        // seed-to-seed noise RMS 0.88 % → 1.89 % with four random draws).
+        if lit.len() > PIECE_RAYS {
+            lit.select_nth_unstable_by(PIECE_RAYS - 1, |a, b| b.5.total_cmp(&a.5));
+            lit.truncate(PIECE_RAYS);
+        }
         let weight_sum: f32 = lit.iter().map(|l| l.5).sum();
-        let cast = |i: usize, rays: &mut u64| -> bool {
-            let (p, n, _, dir, dist, _) = lit[i];
-            *rays += 1;
+        let mut visible = 0.0f32;
+        for &(p, n, _, dir, dist, w) in &lit {
+            rays += 1;
             let tmax = if dist.is_finite() {
                 dist * (1.0 - 1e-4)
             } else {
                 f32::INFINITY
             };
-            s.rays.unoccluded(offset_ray_origin(p, n), dir, tmax)
-        };
-        if lit.len() <= PIECE_RAYS {
-            for (i, piece) in lit.iter().enumerate() {
-                if cast(i, &mut rays) {
-                    visible += piece.5 / weight_sum;
-                }
-            }
-        } else {
-            let shift = rng.next_f32();
-            let (mut acc, mut i) = (0.0f32, 0usize);
-            for k in 0..PIECE_RAYS {
-                let target = (k as f32 + shift) / PIECE_RAYS as f32 * weight_sum;
-                while i + 1 < lit.len() && acc + lit[i].5 < target {
-                    acc += lit[i].5;
-                    i += 1;
-                }
-                if cast(i, &mut rays) {
-                    visible += 1.0 / PIECE_RAYS as f32;
-                }
+            if s.rays.unoccluded(offset_ray_origin(p, n), dir, tmax) {
+                visible += w / weight_sum;
             }
         }
         if visible <= 0.0 {
@@ -546,7 +526,7 @@ pub fn texels(
                 // One point: the texel's pieces (see `pieces_direct`);
                 // s × s points: spread over the texel's square.
                 let (centre, (ph, pb, pr)) = if supersample <= 1 {
-                    (Vec::new(), pieces_direct(s, lights, t, seed))
+                    (Vec::new(), pieces_direct(s, lights, t))
                 } else {
                     let m = supersample * supersample;
                     let points = (0..m)
