@@ -19,7 +19,7 @@
 
 use crate::form_factors::raycast::{Landing, Surfaces};
 use crate::geometry::Geometry;
-use crate::raycast::Hit;
+use crate::raycast::{Hit, RayCaster};
 use crate::sampling::{
     cosine_hemisphere, offset_ray_origin, shadow_ray, stratified, to_world, Stream,
 };
@@ -197,6 +197,18 @@ pub fn punctual_irradiance(light: &Light, p: Vec3, n: Vec3) -> Option<(Vec3, Vec
     }
 }
 
+/// True when nothing lies between `origin` and a punctual light found by
+/// [`punctual_irradiance`] in direction `dir` at distance `dist` (infinite
+/// for a directional light); the segment stops just short of the light.
+pub fn punctual_unoccluded(rays: &RayCaster, origin: Vec3, dir: Vec3, dist: f32) -> bool {
+    let tmax = if dist.is_finite() {
+        dist * (1.0 - 1e-4)
+    } else {
+        f32::INFINITY
+    };
+    rays.unoccluded(origin, dir, tmax)
+}
+
 /// Sample counts of the two emitter estimators, for multiple importance
 /// sampling with counts (Veach 1997, §9.2: wᵢ = (nᵢ pᵢ)² / Σⱼ (nⱼ pⱼ)²). The weights only
 /// have to sum to one per direction for the sum to be unbiased, so the
@@ -259,7 +271,7 @@ pub fn hemisphere_light(
 }
 
 /// Direct irradiance / π over a texel: punctual lights exactly at its
-/// `centre` (point, normal and a weight; one shadow ray each), emitters by one light
+/// `centre` points (point and normal; one shadow ray each), emitters by one light
 /// sample from each of `points` (positions spread over the texel, so the
 /// estimate is the texel's average), sky and emitters by one
 /// cosine-weighted ray from each of `hemisphere` points; the two emitter
@@ -270,7 +282,7 @@ pub fn direct_at(
     s: &Surfaces,
     lights: &Lights,
     mis: Mis,
-    punctual_points: &[(Vec3, Vec3, f32)],
+    punctual_points: &[(Vec3, Vec3)],
     points: &[(Vec3, Vec3)],
     hemisphere: &[(Vec3, Vec3)],
     rng: &mut Stream,
@@ -284,19 +296,13 @@ pub fn direct_at(
     // directional part (see [`Directional`]) is exact: a light of
     // irradiance/π h from ω adds h/cos θ · ω.
     let mut dir_part: Directional = [Vec3::ZERO; 3];
-    let w0 = 1.0 / punctual_points.len().max(1) as f32;
-    for &(p, n, scale) in punctual_points {
-        let w = w0 * scale;
+    let w = 1.0 / punctual_points.len().max(1) as f32;
+    for &(p, n) in punctual_points {
         let origin = offset_ray_origin(p, n);
         for light in &lights.punctual {
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
                 rays += 1;
-                let tmax = if dist.is_finite() {
-                    dist * (1.0 - 1e-4)
-                } else {
-                    f32::INFINITY
-                };
-                if s.rays.unoccluded(origin, dir, tmax) {
+                if punctual_unoccluded(s.rays, origin, dir, dist) {
                     h += value * w;
                     let cos = n.dot(dir).max(1e-3);
                     for (c, b) in dir_part.iter_mut().enumerate() {
@@ -320,10 +326,7 @@ pub fn direct_at(
     // order) integrates over only n of the n² stratum pairs and is biased
     // where visibility depends on both (a plate seeing the sky past a
     // floor's edge read 4.7 % low at 64 samples).
-    let mut perm: Vec<u32> = (0..nh).collect();
-    for k in (1..nh as usize).rev() {
-        perm.swap(k, rng.below(k as u32 + 1) as usize);
-    }
+    let perm = rng.permutation(nh);
     for k in 0..nh {
         let (p, n) = hemisphere[perm[k as usize] as usize];
         let origin = offset_ray_origin(p, n);
@@ -468,12 +471,7 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> (Vec3, Directio
         let mut visible = 0.0f32;
         for &(p, n, _, dir, dist, w) in &lit {
             rays += 1;
-            let tmax = if dist.is_finite() {
-                dist * (1.0 - 1e-4)
-            } else {
-                f32::INFINITY
-            };
-            if s.rays.unoccluded(offset_ray_origin(p, n), dir, tmax) {
+            if punctual_unoccluded(s.rays, offset_ray_origin(p, n), dir, dist) {
                 visible += w / weight_sum;
             }
         }
@@ -530,11 +528,7 @@ pub fn texels(
                 } else {
                     let m = supersample * supersample;
                     let points = (0..m)
-                        .map(|k| {
-                            let (p, n) =
-                                s.sample_texel(t as u32, stratified(k, m, Vec2::splat(0.5)));
-                            (p, n, 1.0)
-                        })
+                        .map(|k| s.sample_texel(t as u32, stratified(k, m, Vec2::splat(0.5))))
                         .collect();
                     (points, (Vec3::ZERO, [Vec3::ZERO; 3], 0))
                 };

@@ -31,6 +31,31 @@ const PURPOSE: u64 = 3;
 /// A texel is invalid when more than this fraction of its rays hit back faces.
 pub const BACKFACE_TOLERANCE: f32 = 0.1;
 
+/// Texel validity's rule: more than `BACKFACE_TOLERANCE` of `rays` met back
+/// faces.
+fn too_many_back_faces(back: u32, rays: u32) -> bool {
+    back as f32 > BACKFACE_TOLERANCE * rays as f32
+}
+
+/// Ray `k` of `rays` from texel `t`: a point of position stratum
+/// `strata[k]` (a random pairing, see [`Stream::permutation`]) and a
+/// cosine-weighted direction of stratum `k`. Returns (point, normal, direction).
+fn texel_ray(
+    s: &Surfaces,
+    t: usize,
+    k: u32,
+    rays: u32,
+    strata: &[u32],
+    rng: &mut Stream,
+) -> (Vec3, Vec3, Vec3) {
+    let (p, ng) = s.sample_texel(
+        t as u32,
+        stratified(strata[k as usize], rays, rng.next_vec2()),
+    );
+    let dir = to_world(cosine_hemisphere(stratified(k, rays, rng.next_vec2())), ng);
+    (p, ng, dir)
+}
+
 /// Rays per texel of the validity estimate made before the gather.
 pub const VALIDITY_RAYS: u32 = 8;
 
@@ -38,7 +63,7 @@ pub const VALIDITY_RAYS: u32 = 8;
 const VALIDITY_PURPOSE: u64 = 11;
 
 /// A cheap first estimate of texel validity (the gather's rule on `rays`
-/// stratified cosine rays per texel, stopping once the texel is invalid),
+/// of its rays per texel, stopping once the texel is invalid),
 /// so texels buried in geometry can be filled in the first-pass lightmap
 /// before the gather reads it. Returns the validity and the rays cast.
 pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<bool>, u64) {
@@ -52,19 +77,19 @@ pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<bool>, u64) {
             let mut cast = 0u64;
             for t in range {
                 let mut rng = Stream::new(seed, VALIDITY_PURPOSE, t as u64);
+                let strata = rng.permutation(rays);
                 let mut back = 0u32;
                 for k in 0..rays {
-                    if back as f32 > BACKFACE_TOLERANCE * rays as f32 {
+                    if too_many_back_faces(back, rays) {
                         break;
                     }
                     cast += 1;
-                    let (p, ng) = s.sample_texel(t as u32, stratified(k, rays, rng.next_vec2()));
-                    let dir = to_world(cosine_hemisphere(stratified(k, rays, rng.next_vec2())), ng);
+                    let (p, ng, dir) = texel_ray(s, t, k, rays, &strata, &mut rng);
                     if let (Landing::BackFace, _) = s.trace(offset_ray_origin(p, ng), dir) {
                         back += 1;
                     }
                 }
-                out.push(back as f32 <= BACKFACE_TOLERANCE * rays as f32);
+                out.push(!too_many_back_faces(back, rays));
             }
             (out, cast)
         })
@@ -146,10 +171,7 @@ pub fn gather(
             for t in range {
                 let mut rng = Stream::new(seed, PURPOSE, t as u64);
                 // Pair position strata with direction strata at random.
-                let mut strata: Vec<u32> = (0..rays).collect();
-                for k in (1..rays as usize).rev() {
-                    strata.swap(k, rng.below(k as u32 + 1) as usize);
-                }
+                let strata = rng.permutation(rays);
                 let (mut sum, mut back, mut sq) = (Vec3::ZERO, 0u32, 0.0f32);
                 let mut dir_sum: Directional = [Vec3::ZERO; 3];
                 let mut open = 0u32;
@@ -160,15 +182,11 @@ pub fn gather(
                     // texel needs, the texel is invalid whatever the rest
                     // would find (its value is replaced from its chart), so
                     // stop: texels inside walls are a quarter of Sponza's.
-                    if back as f32 > BACKFACE_TOLERANCE * rays as f32 {
+                    if too_many_back_faces(back, rays) {
                         break;
                     }
                     cast += 1;
-                    let (p, ng) = s.sample_texel(
-                        t as u32,
-                        stratified(strata[k as usize], rays, rng.next_vec2()),
-                    );
-                    let dir = to_world(cosine_hemisphere(stratified(k, rays, rng.next_vec2())), ng);
+                    let (p, ng, dir) = texel_ray(s, t, k, rays, &strata, &mut rng);
                     // Radiance for the directional part: everything seen.
                     let mut seen = Vec3::ZERO;
                     let (landing, hit) = s.trace(offset_ray_origin(p, ng), dir);
@@ -213,7 +231,7 @@ pub fn gather(
                         }
                     }
                 }
-                let valid = (back as f32) <= BACKFACE_TOLERANCE * rays as f32;
+                let valid = !too_many_back_faces(back, rays);
                 let n = cast as f32;
                 let mean = sum / n;
                 let lum = mean.element_sum() / 3.0;

@@ -396,7 +396,7 @@ pub fn bake<'s>(
                 // neighbours' H₁ before anything reads them.
                 timer.begin("validity", texels.len() as u64);
                 let (pre, rays) = gather::validity(&surfaces, gather::VALIDITY_RAYS, config.seed);
-                lightmap::fill_invalid(&texels, &mut first, &pre, 4 * config.patch_texels.max(4));
+                lightmap::fill_invalid(&texels, &mut first, &pre, fill_rings(config));
                 validity_rays = rays;
                 timer.end("validity");
             }
@@ -524,12 +524,7 @@ pub fn bake<'s>(
         ao,
     } = solved;
     timer.begin("lightmaps", 0);
-    lightmap::fill_invalid(
-        &texels,
-        &mut texel_values,
-        &valid,
-        4 * config.patch_texels.max(4),
-    );
+    lightmap::fill_invalid(&texels, &mut texel_values, &valid, fill_rings(config));
     let invalid_texels = valid.iter().filter(|v| !**v).count() as u64;
     let mut lightmaps =
         lightmap::build(&texels, texel_values, atlas.page_count, 2 * config.padding);
@@ -653,6 +648,12 @@ struct Solved {
     validity_rays: u64,
     gathered_dir: Vec<direct::Directional>,
     ao: Vec<f32>,
+}
+
+/// Rings of neighbours an invalid texel is filled from
+/// ([`lightmap::fill_invalid`]): four patches' width, at least 16 texels.
+fn fill_rings(config: &BakeConfig) -> u32 {
+    4 * config.patch_texels.max(4)
 }
 
 /// Which materials' emission is sampled as direct light (per

@@ -37,6 +37,18 @@ impl Stream {
     pub fn below(&mut self, n: u32) -> u32 {
         self.0.random_range(0..n)
     }
+
+    /// A uniformly random permutation of `0..n` (Fisher–Yates), e.g. to pair
+    /// position strata with direction strata: any fixed pairing integrates
+    /// over only n of the n² stratum pairs, which is biased where the
+    /// integrand depends on both.
+    pub fn permutation(&mut self, n: u32) -> Vec<u32> {
+        let mut perm: Vec<u32> = (0..n).collect();
+        for k in (1..n as usize).rev() {
+            perm.swap(k, self.below(k as u32 + 1) as usize);
+        }
+        perm
+    }
 }
 
 /// Shirley–Chiu concentric map of the unit square to the unit disk.

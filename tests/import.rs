@@ -244,7 +244,7 @@ fn fine_checker_furnace() {
     // the 64-pixel checker over the 2 m face: 3.9 mm pixels).
     let scene = radbake::scene::load(&scene_path("furnace_box.gltf"), &Default::default()).unwrap();
     let mesh = &scene.meshes[0];
-    let uvs: Vec<u8> = mesh
+    let uvs: Vec<[f32; 2]> = mesh
         .positions
         .chunks(4)
         .flat_map(|face| {
@@ -261,18 +261,8 @@ fn fine_checker_furnace() {
                 .map(move |p| [p[a] * 4.37, p[b] * 4.37])
                 .collect::<Vec<_>>()
         })
-        .flatten()
-        .flat_map(f32::to_le_bytes)
         .collect();
-    let buffer = doc["buffers"].as_array().unwrap().len();
-    doc["buffers"].as_array_mut().unwrap().push(json!({"byteLength": uvs.len(), "uri": format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&uvs))}));
-    let view = doc["bufferViews"].as_array().unwrap().len();
-    doc["bufferViews"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({"buffer": buffer, "byteLength": uvs.len()}));
-    doc["accessors"].as_array_mut().unwrap().push(json!({"bufferView": view, "componentType": 5126, "count": mesh.positions.len(), "type": "VEC2"}));
-    let acc = doc["accessors"].as_array().unwrap().len() - 1;
+    let acc = append_vec2_accessor(&mut doc, &uvs);
     doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(acc);
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
 
@@ -324,22 +314,8 @@ fn existing_uvs_are_repacked() {
         radbake::scene::load(&scene_path("parallel_plates.gltf"), &Default::default()).unwrap();
     let mut doc = doc;
     for mesh in &scene.meshes {
-        let uvs: Vec<u8> = mesh
-            .positions
-            .iter()
-            .flat_map(|p| [p.x, p.z])
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        let view = doc["bufferViews"].as_array().unwrap().len();
-        // Append as a data-URI buffer of its own.
-        let buffer = doc["buffers"].as_array().unwrap().len();
-        doc["buffers"].as_array_mut().unwrap().push(json!({"byteLength": uvs.len(), "uri": format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&uvs))}));
-        doc["bufferViews"]
-            .as_array_mut()
-            .unwrap()
-            .push(json!({"buffer": buffer, "byteLength": uvs.len()}));
-        doc["accessors"].as_array_mut().unwrap().push(json!({"bufferView": view, "componentType": 5126, "count": mesh.positions.len(), "type": "VEC2"}));
-        let acc = doc["accessors"].as_array().unwrap().len() - 1;
+        let uvs: Vec<[f32; 2]> = mesh.positions.iter().map(|p| [p.x, p.z]).collect();
+        let acc = append_vec2_accessor(&mut doc, &uvs);
         for prim in doc["meshes"][mesh.gltf_index]["primitives"]
             .as_array_mut()
             .unwrap()

@@ -293,12 +293,7 @@ fn directional_and_spot_lights() {
 
     let (inner, outer) = (0.3f32, 0.5f32);
     let h = 1.0f32;
-    let rot_down = [
-        -std::f32::consts::FRAC_1_SQRT_2,
-        0.0,
-        0.0,
-        std::f32::consts::FRAC_1_SQRT_2,
-    ];
+    let rot_down = POINT_DOWN;
     let path = floor_with_light(
         json!({"type": "spot", "intensity": 5.0, "spot": {"innerConeAngle": inner, "outerConeAngle": outer}}),
         json!({"name": "spot", "extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [0.0, h, 0.0], "rotation": rot_down}),

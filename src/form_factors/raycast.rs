@@ -158,10 +158,7 @@ pub fn row(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> (Vec<(u32, f32)>, 
 /// CPU and GPU paths, so both cast the same rays.
 pub fn row_rays(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> Vec<(Vec3, Vec3)> {
     let mut rng = Stream::new(seed, PURPOSE, i as u64);
-    let mut area_strata: Vec<u32> = (0..n_rays).collect();
-    for k in (1..n_rays as usize).rev() {
-        area_strata.swap(k, rng.below(k as u32 + 1) as usize);
-    }
+    let area_strata = rng.permutation(n_rays);
     (0..n_rays)
         .map(|k| {
             let area_u = area_strata[k as usize] as f32 + rng.next_f32();

@@ -208,21 +208,26 @@ mod tests {
         g
     }
 
-    /// A direction with a −0.0 component still finds its hit (regression:
-    /// a sun pointing straight down cast no shadows).
-    #[test]
-    fn negative_zero_directions_hit() {
+    /// A ray caster over exactly these opaque triangles.
+    fn caster(triangles: &[[Vec3; 3]]) -> RayCaster {
         let scene = Scene {
             materials: vec![crate::scene::Material::fallback()],
             ..Default::default()
         };
-        let mut g = random_geometry(1, 0);
-        g.p_ws[0] = [
+        let mut g = random_geometry(triangles.len(), 0);
+        g.p_ws.copy_from_slice(triangles);
+        RayCaster::new(&scene, &g)
+    }
+
+    /// A direction with a −0.0 component still finds its hit (regression:
+    /// a sun pointing straight down cast no shadows).
+    #[test]
+    fn negative_zero_directions_hit() {
+        let rc = caster(&[[
             Vec3::new(-1.0, 1.0, -1.0),
             Vec3::new(1.0, 1.0, -1.0),
             Vec3::new(0.0, 1.0, 1.0),
-        ];
-        let rc = RayCaster::new(&scene, &g);
+        ]]);
         for d in [
             Vec3::new(-0.0, 1.0, 0.0),
             Vec3::new(0.0, 1.0, -0.0),
@@ -296,22 +301,18 @@ mod tests {
     /// the floor (Cornell box back-wall/floor corner; regression).
     #[test]
     fn corner_rays_hit_the_floor() {
-        let scene = Scene {
-            materials: vec![crate::scene::Material::fallback()],
-            ..Default::default()
-        };
-        let mut g = random_geometry(2, 0);
-        g.p_ws[0] = [
-            Vec3::new(0.5528, 0.0, 0.0),
-            Vec3::new(0.0, 0.0, 0.5592),
-            Vec3::new(0.5496, 0.0, 0.5592),
-        ];
-        g.p_ws[1] = [
-            Vec3::new(0.5528, 0.0, 0.0),
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(0.0, 0.0, 0.5592),
-        ];
-        let rc = RayCaster::new(&scene, &g);
+        let rc = caster(&[
+            [
+                Vec3::new(0.5528, 0.0, 0.0),
+                Vec3::new(0.0, 0.0, 0.5592),
+                Vec3::new(0.5496, 0.0, 0.5592),
+            ],
+            [
+                Vec3::new(0.5528, 0.0, 0.0),
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(0.0, 0.0, 0.5592),
+            ],
+        ]);
         let o = Vec3::new(0.1108172, 0.000053278272, 0.55918473);
         let d = Vec3::new(0.15438633, -0.63962615, -0.75302273).normalize();
         let h = rc

@@ -21,7 +21,7 @@
 pub mod bdpt;
 pub mod render;
 
-use crate::direct::{punctual_irradiance, Lights};
+use crate::direct::{punctual_irradiance, punctual_unoccluded, Lights};
 use crate::geometry::Geometry;
 use crate::raycast::RayCaster;
 use crate::sampling::{
@@ -304,12 +304,7 @@ impl<'a> Tracer<'a> {
         let mut h = Vec3::ZERO;
         for light in &self.lights.punctual {
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
-                let tmax = if dist.is_finite() {
-                    dist * (1.0 - 1e-4)
-                } else {
-                    f32::INFINITY
-                };
-                if self.rays.unoccluded(origin, dir, tmax) {
+                if punctual_unoccluded(self.rays, origin, dir, dist) {
                     h += value;
                 }
             }

@@ -246,3 +246,57 @@ pub fn sphere(r: f32, rings: u32, segments: u32, inward: bool) -> (Vec<[f32; 3]>
     }
     (p, idx)
 }
+
+/// Rotation of a node that turns its −Z (a light's direction) straight down.
+#[allow(dead_code)]
+pub const POINT_DOWN: [f32; 4] = [
+    -std::f32::consts::FRAC_1_SQRT_2,
+    0.0,
+    0.0,
+    std::f32::consts::FRAC_1_SQRT_2,
+];
+
+/// Adds a `KHR_lights_punctual` directional light of `intensity` (lux)
+/// shining straight down, as a root node of scene 0.
+#[allow(dead_code)]
+pub fn add_vertical_sun(doc: &mut Value, intensity: f32) {
+    doc["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    doc["extensions"] = json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": intensity}]}});
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    nodes.push(json!({"name": "sun", "rotation": POINT_DOWN, "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+    let sun = nodes.len() - 1;
+    doc["scenes"][0]["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!(sun));
+}
+
+/// Appends `data` to `doc` as a VEC2 float accessor in a data-URI buffer of
+/// its own; returns the accessor's index.
+#[allow(dead_code)]
+pub fn append_vec2_accessor(doc: &mut Value, data: &[[f32; 2]]) -> usize {
+    let bytes: Vec<u8> = data
+        .iter()
+        .flatten()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bytes)
+    );
+    let buffer = doc["buffers"].as_array().unwrap().len();
+    doc["buffers"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"byteLength": bytes.len(), "uri": uri}));
+    let view = doc["bufferViews"].as_array().unwrap().len();
+    doc["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"buffer": buffer, "byteLength": bytes.len()}));
+    let accessors = doc["accessors"].as_array_mut().unwrap();
+    accessors.push(
+        json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "VEC2"}),
+    );
+    accessors.len() - 1
+}
