@@ -216,128 +216,248 @@ impl GpuRayCaster {
     /// # Errors
     /// A failed GPU wait or readback.
     pub fn closest_hits(&self, rays: &[(Vec3, Vec3)]) -> Result<Vec<Option<Hit>>> {
+        let slot = self.slot(rays.len().min(BATCH));
         let mut out = Vec::with_capacity(rays.len());
         for batch in rays.chunks(BATCH) {
-            out.extend(self.cast_batch(batch)?);
+            let gpu_rays: Vec<GpuRay> = batch.iter().map(|&(o, d)| gpu_ray(o, d)).collect();
+            let pending = self.submit(&slot, &gpu_rays);
+            out.extend(self.wait(&slot, pending)?.iter().map(|h| self.hit(h)));
         }
         Ok(out)
     }
 
-    fn cast_batch(&self, rays: &[(Vec3, Vec3)]) -> Result<Vec<Option<Hit>>> {
-        let n = rays.len();
-        if n == 0 {
-            return Ok(Vec::new());
-        }
-        let gpu_rays: Vec<GpuRay> = rays
-            .iter()
-            .map(|(o, d)| {
-                // −0.0 components made +0.0 (1/d then is +inf, as on the CPU).
-                let d = *d + Vec3::ZERO;
-                GpuRay {
-                    origin: [o.x, o.y, o.z, 0.0],
-                    dir: [d.x, d.y, d.z, 3.0e38],
-                }
-            })
-            .collect();
-        let d = &self.device;
-        let ray_buf = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("rays"),
-            contents: bytemuck::cast_slice(&gpu_rays),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
+    /// Casts `rays` and times the three steps apart, each waited for on its
+    /// own: upload, the kernel, readback (for `examples/gpu_rays.rs`).
+    ///
+    /// # Errors
+    /// A failed GPU wait or readback.
+    pub fn timed_cast(&self, rays: &[(Vec3, Vec3)]) -> Result<(Vec<Option<Hit>>, CastTimes)> {
+        let n = rays.len().min(BATCH);
+        let slot = self.slot(n);
+        let gpu_rays: Vec<GpuRay> = rays[..n].iter().map(|&(o, d)| gpu_ray(o, d)).collect();
+        let wait = |i| {
+            self.device
+                .poll(wgpu::PollType::Wait {
+                    submission_index: Some(i),
+                    timeout: None,
+                })
+                .map_err(|e| anyhow!("GPU wait failed: {e}"))
+        };
+        let t0 = std::time::Instant::now();
+        self.queue
+            .write_buffer(&slot.rays, 0, bytemuck::cast_slice(&gpu_rays));
+        self.queue
+            .write_buffer(&slot.params, 0, bytemuck::cast_slice(&[n as u32, 0, 0, 0]));
+        wait(self.queue.submit([]))?;
+        let upload = t0.elapsed().as_secs_f64();
+        let t1 = std::time::Instant::now();
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        self.encode_dispatch(&mut encoder, &slot, n);
+        wait(self.queue.submit([encoder.finish()]))?;
+        let kernel = t1.elapsed().as_secs_f64();
+        let t2 = std::time::Instant::now();
+        let mut encoder = self.device.create_command_encoder(&Default::default());
         let size = (n * std::mem::size_of::<GpuHit>()) as u64;
-        let hit_buf = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hits"),
-            size,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let read_buf = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hits readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let params = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        encoder.copy_buffer_to_buffer(&slot.hits, 0, &slot.read, 0, size);
+        let index = self.queue.submit([encoder.finish()]);
+        let hits = self.wait(&slot, Pending { index, n })?;
+        let readback = t2.elapsed().as_secs_f64();
+        let out = hits.iter().map(|h| self.hit(h)).collect();
+        Ok((
+            out,
+            CastTimes {
+                upload,
+                kernel,
+                readback,
+            },
+        ))
+    }
+
+    /// A GPU hit as the CPU's [`Hit`] (global triangle id).
+    fn hit(&self, h: &GpuHit) -> Option<Hit> {
+        (h.tri != u32::MAX).then(|| Hit {
+            tri: self.ids[h.tri as usize],
+            t: h.t,
+            u: h.u,
+            v: h.v,
+        })
+    }
+
+    /// Buffers for batches of up to `capacity` rays, reused batch after
+    /// batch (two of them let the CPU fill one while the GPU casts the other).
+    fn slot(&self, capacity: usize) -> Slot {
+        let d = &self.device;
+        let capacity = capacity.max(1);
+        let buffer = |label, size: usize, usage| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (capacity * size) as u64,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as U;
+        let rays = buffer(
+            "rays",
+            std::mem::size_of::<GpuRay>(),
+            U::STORAGE | U::COPY_DST,
+        );
+        let hits = buffer(
+            "hits",
+            std::mem::size_of::<GpuHit>(),
+            U::STORAGE | U::COPY_SRC,
+        );
+        let read = buffer(
+            "hits readback",
+            std::mem::size_of::<GpuHit>(),
+            U::MAP_READ | U::COPY_DST,
+        );
+        let params = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
-            contents: bytemuck::cast_slice(&[n as u32, 0, 0, 0]),
-            usage: wgpu::BufferUsages::UNIFORM,
+            size: 16,
+            usage: U::UNIFORM | U::COPY_DST,
+            mapped_at_creation: false,
         });
+        fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry {
+                binding,
+                resource: buffer.as_entire_binding(),
+            }
+        }
         let bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raycast"),
             layout: &self.layout,
             entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.nodes.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: self.tris.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: ray_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: hit_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 4,
-                    resource: params.as_entire_binding(),
-                },
+                entry(0, &self.nodes),
+                entry(1, &self.tris),
+                entry(2, &rays),
+                entry(3, &hits),
+                entry(4, &params),
             ],
         });
+        Slot {
+            rays,
+            hits,
+            read,
+            params,
+            bind,
+        }
+    }
+
+    /// Records the cast of the first `n` rays of `slot`.
+    fn encode_dispatch(&self, encoder: &mut wgpu::CommandEncoder, slot: &Slot, n: usize) {
         let groups = (n as u32).div_ceil(GROUP);
         let (gx, gy) = (groups.min(65535), groups.div_ceil(65535));
-        let mut encoder = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("raycast"),
+            timestamp_writes: None,
         });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &slot.bind, &[]);
+        pass.dispatch_workgroups(gx, gy, 1);
+    }
+
+    /// Uploads `rays` into `slot` and queues their cast and the copy of the
+    /// hits to the readback buffer; returns at once.
+    fn submit(&self, slot: &Slot, rays: &[GpuRay]) -> Pending {
+        let n = rays.len();
+        self.queue
+            .write_buffer(&slot.rays, 0, bytemuck::cast_slice(rays));
+        self.queue
+            .write_buffer(&slot.params, 0, bytemuck::cast_slice(&[n as u32, 0, 0, 0]));
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("raycast"),
-                timestamp_writes: None,
             });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
+        if n > 0 {
+            self.encode_dispatch(&mut encoder, slot, n);
+            let size = (n * std::mem::size_of::<GpuHit>()) as u64;
+            encoder.copy_buffer_to_buffer(&slot.hits, 0, &slot.read, 0, size);
         }
-        encoder.copy_buffer_to_buffer(&hit_buf, 0, &read_buf, 0, size);
-        self.queue.submit([encoder.finish()]);
+        Pending {
+            index: self.queue.submit([encoder.finish()]),
+            n,
+        }
+    }
+
+    /// Waits for `pending` (and only it) and reads its hits back.
+    fn wait(&self, slot: &Slot, pending: Pending) -> Result<Vec<GpuHit>> {
+        if pending.n == 0 {
+            return Ok(Vec::new());
+        }
+        let size = (pending.n * std::mem::size_of::<GpuHit>()) as u64;
         let (tx, rx) = std::sync::mpsc::channel();
-        read_buf.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        d.poll(wgpu::PollType::wait_indefinitely())
+        slot.read
+            .slice(..size)
+            .map_async(wgpu::MapMode::Read, move |r| {
+                let _ = tx.send(r);
+            });
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(pending.index),
+                timeout: None,
+            })
             .map_err(|e| anyhow!("GPU wait failed: {e}"))?;
         rx.recv()?
             .map_err(|e| anyhow!("cannot read the hits back: {e}"))?;
-        let view = read_buf
-            .slice(..)
-            .get_mapped_range()
-            .map_err(|e| anyhow!("cannot map the hits: {e:?}"))?;
-        let hits: &[GpuHit] = bytemuck::cast_slice(&view);
-        let out = hits
-            .iter()
-            .map(|h| {
-                (h.tri != u32::MAX).then(|| Hit {
-                    tri: self.ids[h.tri as usize],
-                    t: h.t,
-                    u: h.u,
-                    v: h.v,
-                })
-            })
-            .collect();
-        drop(view);
-        read_buf.unmap();
-        Ok(out)
+        let hits = {
+            let view = slot
+                .read
+                .slice(..size)
+                .get_mapped_range()
+                .map_err(|e| anyhow!("cannot map the hits: {e:?}"))?;
+            bytemuck::cast_slice::<u8, GpuHit>(&view).to_vec()
+        };
+        slot.read.unmap();
+        Ok(hits)
+    }
+}
+
+/// Seconds of one timed batch ([`GpuRayCaster::timed_cast`]).
+#[derive(Clone, Copy, Debug)]
+pub struct CastTimes {
+    /// Rays to the GPU.
+    pub upload: f64,
+    /// The compute dispatch.
+    pub kernel: f64,
+    /// Hits back to the CPU.
+    pub readback: f64,
+}
+
+/// One batch's buffers ([`GpuRayCaster::slot`]).
+struct Slot {
+    rays: wgpu::Buffer,
+    hits: wgpu::Buffer,
+    read: wgpu::Buffer,
+    params: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+}
+
+/// A submitted batch.
+struct Pending {
+    index: wgpu::SubmissionIndex,
+    n: usize,
+}
+
+/// A ray in the shader's layout: `tmin` 0, `tmax` unbounded; −0.0
+/// direction components made +0.0 (1/d then is +inf, as on the CPU).
+fn gpu_ray(o: Vec3, d: Vec3) -> GpuRay {
+    let d = d + Vec3::ZERO;
+    GpuRay {
+        origin: [o.x, o.y, o.z, 0.0],
+        dir: [d.x, d.y, d.z, 3.0e38],
     }
 }
 
 /// Form factors by ray casting with the rays cast on the GPU: the rows of
 /// [`crate::form_factors::raycast::compute`], rays generated and hits
 /// counted on the CPU, patches in batches of about a million rays.
+///
+/// Pipelined over two buffer slots: while the GPU casts batch k, the CPU
+/// generates batch k + 1 and, once it is submitted, turns batch k's hits
+/// into rows. Rows are kept in patch order, so the result does not depend
+/// on the timing.
 ///
 /// # Errors
 /// GPU failures (the caller falls back to the CPU).
@@ -349,41 +469,74 @@ pub fn form_factors(
     advance: &(dyn Fn(u64) + Sync),
 ) -> Result<FormFactors> {
     let n = s.patches.len();
-    let per_batch = (BATCH / rays_per_patch.max(1) as usize).max(1);
+    let rpp = rays_per_patch.max(1) as usize;
+    let per_batch = (BATCH / rpp).max(1);
     let masked: Vec<bool> = s
         .scene
         .materials
         .iter()
         .map(|m| matches!(m.alpha, crate::scene::Alpha::Mask { .. }))
         .collect();
-    let mut rows = Vec::with_capacity(n);
-    let mut stats = FormFactorStats::default();
-    for start in (0..n).step_by(per_batch) {
-        let end = (start + per_batch).min(n);
-        let rays: Vec<Vec<(Vec3, Vec3)>> = (start..end)
+    let batches: Vec<std::ops::Range<usize>> = (0..n)
+        .step_by(per_batch)
+        .map(|a| a..(a + per_batch).min(n))
+        .collect();
+    // Rays of a batch: per patch (for the rows) and flat in the shader's layout.
+    let generate = |r: &std::ops::Range<usize>| {
+        let rays: Vec<Vec<(Vec3, Vec3)>> = r
+            .clone()
             .into_par_iter()
             .map(|i| row_rays(s, i, rays_per_patch, seed))
             .collect();
-        let flat: Vec<(Vec3, Vec3)> = rays.iter().flatten().copied().collect();
-        let hits = gpu.closest_hits(&flat).context("GPU ray casting failed")?;
-        let results: Vec<_> = (start..end)
+        let mut flat = vec![GpuRay::zeroed(); rays.len() * rpp];
+        flat.par_chunks_mut(rpp).zip(&rays).for_each(|(out, row)| {
+            for (g, &(o, d)) in out.iter_mut().zip(row) {
+                *g = gpu_ray(o, d);
+            }
+        });
+        (rays, flat)
+    };
+    let slots = [
+        gpu.slot(per_batch.min(n) * rpp),
+        gpu.slot(per_batch.min(n) * rpp),
+    ];
+    let mut rows = Vec::with_capacity(n);
+    let mut stats = FormFactorStats::default();
+    let Some(first) = batches.first() else {
+        return Ok(FormFactors::from_rows(0, rows, stats));
+    };
+    let (mut rays, flat) = generate(first);
+    let mut pending = Some(gpu.submit(&slots[0], &flat));
+    for (b, range) in batches.iter().enumerate() {
+        let next = batches.get(b + 1).map(&generate);
+        let this = pending
+            .take()
+            .ok_or_else(|| anyhow!("batch {b} was not submitted"))?;
+        let hits = gpu
+            .wait(&slots[b % 2], this)
+            .context("GPU ray casting failed")?;
+        let mut next_rays = None;
+        if let Some((r, next_flat)) = next {
+            pending = Some(gpu.submit(&slots[(b + 1) % 2], &next_flat));
+            next_rays = Some(r);
+        }
+        let results: Vec<_> = (range.start..range.end)
             .into_par_iter()
             .map(|i| {
-                let k0 = (i - start) * rays_per_patch as usize;
-                let row_hits: Vec<Option<Hit>> = (0..rays_per_patch as usize)
-                    .map(|k| {
-                        let h = hits[k0 + k];
-                        match h {
-                            // Cut-outs are tested on the CPU.
-                            Some(hit) if masked[s.geometry.material[hit.tri as usize] as usize] => {
-                                let (o, d) = flat[k0 + k];
-                                s.rays.closest_hit(o, d, f32::INFINITY)
-                            }
-                            other => other,
+                let k0 = (i - range.start) * rpp;
+                let row = &rays[i - range.start];
+                let row_hits: Vec<Option<Hit>> = hits[k0..k0 + rpp]
+                    .iter()
+                    .zip(row)
+                    .map(|(h, &(o, d))| match gpu.hit(h) {
+                        // Cut-outs are tested on the CPU.
+                        Some(hit) if masked[s.geometry.material[hit.tri as usize] as usize] => {
+                            s.rays.closest_hit(o, d, f32::INFINITY)
                         }
+                        other => other,
                     })
                     .collect();
-                let r = row_from_hits(s, &rays[i - start], &row_hits);
+                let r = row_from_hits(s, row, &row_hits);
                 advance(1);
                 r
             })
@@ -391,6 +544,10 @@ pub fn form_factors(
         for (r, st) in results {
             stats.add(&st);
             rows.push(r);
+        }
+        match next_rays {
+            Some(r) => rays = r,
+            None => break,
         }
     }
     Ok(FormFactors::from_rows(n, rows, stats))

@@ -100,17 +100,11 @@ fn gpu_closest_hits_match_cpu() {
 /// instance's mean lightmap value agrees with the CPU bake within 0.01 %
 /// (on lavapipe the lightmaps come out bit-identical; another GPU may round
 /// the triangle test differently at shared edges).
-#[test]
-fn gpu_bake_matches_cpu_bake() {
+fn assert_gpu_bake_matches_cpu(config: BakeConfig, min_rays: u64) {
     let scene = load("cornell_box.gltf");
     if gpu(&Geometry::unmapped(&scene)).is_none() {
         return;
     }
-    let config = BakeConfig {
-        texels_per_meter: 24.0,
-        final_gather: 0,
-        ..BakeConfig::default()
-    };
     let cpu = radbake::bake(&scene, &config, &Silent).unwrap();
     let gpu = radbake::bake(
         &scene,
@@ -126,6 +120,16 @@ fn gpu_bake_matches_cpu_bake() {
         "the GPU path ran: {:?}",
         gpu.warnings
     );
+    assert_eq!(cpu.ff_stats.rays, gpu.ff_stats.rays);
+    assert!(
+        gpu.ff_stats.rays >= min_rays,
+        "{} rays, wanted at least {min_rays}",
+        gpu.ff_stats.rays
+    );
+    assert_eq!(cpu.row_sums.len(), gpu.row_sums.len());
+    for (i, (c, g)) in cpu.row_sums.iter().zip(&gpu.row_sums).enumerate() {
+        assert!((c - g).abs() < 1e-3, "row {i}: Σ F CPU {c} GPU {g}");
+    }
     for (c, g) in cpu.instance_reports().iter().zip(gpu.instance_reports()) {
         assert_eq!(c.node, g.node);
         for k in 0..3 {
@@ -140,4 +144,31 @@ fn gpu_bake_matches_cpu_bake() {
             );
         }
     }
+}
+
+#[test]
+fn gpu_bake_matches_cpu_bake() {
+    assert_gpu_bake_matches_cpu(
+        BakeConfig {
+            texels_per_meter: 24.0,
+            final_gather: 0,
+            ..BakeConfig::default()
+        },
+        0,
+    );
+}
+
+/// Over 2²⁰ rays the form factors go to the GPU in two batches, the second
+/// generated while the first is cast (two buffer slots): rows must still
+/// come out in patch order, the same as the CPU's.
+#[test]
+fn gpu_bake_over_several_batches_matches_cpu_bake() {
+    assert_gpu_bake_matches_cpu(
+        BakeConfig {
+            rays_per_patch: 1024,
+            final_gather: 0,
+            ..BakeConfig::default()
+        },
+        1 << 20,
+    );
 }
