@@ -146,7 +146,7 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
     if estimate > config.max_texels as f64 {
         let lowered = (config.max_texels as f64 * 0.6 / area).sqrt() as f32;
         warnings.push(format!(
-            "texels_per_meter {density} would need ~{:.1} M texels for {area:.0} m² of surface; lowered to {lowered:.2} to stay under max_texels = {}",
+            "texels_per_meter {density} would need ~{:.1} M texels for {area:.0} m² of surface; lowered to {lowered:.2} to stay within max_texels = {} (set either to choose)",
             estimate / 1e6,
             config.max_texels
         ));
@@ -339,5 +339,54 @@ mod tests {
         let r = atlas.instances[0];
         let w = (r.max[0] - r.min[0]) * atlas.width as f32;
         assert!(w >= 16.0, "instance rect only {w} texels wide");
+    }
+
+    /// The presets are level-scale as well as room-scale: a small scene
+    /// keeps `texels_per_meter`, a large one gets the density that fits the
+    /// preset's texel budget (and the atlas then holds about that many
+    /// texels), ordered preview < medium < production.
+    #[test]
+    fn presets_fit_large_scenes_to_their_texel_budget() {
+        let scene = |scale: f32, count: u32| Scene {
+            meshes: vec![cube_mesh()],
+            instances: (0..count)
+                .map(|i| Instance {
+                    node: format!("n{i}"),
+                    node_index: i as usize,
+                    mesh: 0,
+                    world_from_local: Mat4::from_scale_rotation_translation(
+                        Vec3::splat(scale),
+                        Default::default(),
+                        Vec3::X * 3.0 * scale * i as f32,
+                    ),
+                })
+                .collect(),
+            materials: vec![Material::fallback()],
+            ..Default::default()
+        };
+        // A room: 2 cubes of 0.5 m, 3 m² in all.
+        let room = unwrap(&scene(0.25, 2), &BakeConfig::medium()).unwrap();
+        assert_eq!(room.texels_per_meter, BakeConfig::medium().texels_per_meter);
+        assert!(room.warnings.is_empty(), "{:?}", room.warnings);
+        // A level: 12 cubes of 30 m, 64,800 m² (7.5e8 texels at 116 texels/m).
+        let level = scene(15.0, 12);
+        let mut densities = Vec::new();
+        for config in [
+            BakeConfig::preview(),
+            BakeConfig::medium(),
+            BakeConfig::production(),
+        ] {
+            let atlas = unwrap(&level, &config).unwrap();
+            let texels = atlas.width as f64 * atlas.height as f64 * atlas.page_count as f64;
+            let budget = config.max_texels as f64;
+            assert!(
+                texels <= 1.5 * budget && texels >= 0.4 * budget,
+                "{texels} atlas texels for a budget of {budget}"
+            );
+            assert!(atlas.texels_per_meter < config.texels_per_meter);
+            assert_eq!(atlas.warnings.len(), 1, "the lowered density is reported");
+            densities.push(atlas.texels_per_meter);
+        }
+        assert!(densities[0] < densities[1] && densities[1] < densities[2]);
     }
 }

@@ -142,7 +142,12 @@ pub struct BakeConfig {
     pub direct_max_patches: u32,
     /// Seed of every random sequence (bakes are deterministic for a seed).
     pub seed: u64,
-    /// Largest lightmap texel count; above it the texel density is lowered (with a warning).
+    /// Texel budget: where the surface would need more lightmap texels than
+    /// this at `texels_per_meter`, the density is lowered to fit (with a
+    /// warning). This is what makes the presets level-scale as well as
+    /// room-scale: `texels_per_meter` is the density of small scenes, the
+    /// budget (preview 256 K, medium 1 M, production 4 M: a 512², 1024² or
+    /// 2048² lightmap's worth) that of large ones.
     pub max_texels: u64,
     /// Direct-light samples per texel (≥ 1): this many emitter samples and this many hemisphere rays.
     pub direct_samples: u32,
@@ -203,7 +208,7 @@ impl BakeConfig {
             solver: Solver::Jacobi,
             direct_max_patches: 4096,
             seed: 0x5eed,
-            max_texels: 16 << 20,
+            max_texels: 1 << 20,
             direct_samples: 64,
             sky: [0.0; 3],
             emitters: EmitterSampling::Auto,
@@ -231,6 +236,7 @@ impl BakeConfig {
             direct_samples: 16,
             final_gather: 32,
             tolerance: 1e-3,
+            max_texels: 1 << 18,
             ..m
         }
     }
@@ -244,6 +250,7 @@ impl BakeConfig {
             direct_samples: 256,
             final_gather: 512,
             tolerance: 1e-5,
+            max_texels: 1 << 22,
             ..m
         }
     }

@@ -373,7 +373,7 @@ struct BakeArgs {
     /// Seed of all random sequences [default: 24301].
     #[arg(long)]
     seed: Option<u64>,
-    /// Largest lightmap texel count; the density is lowered above it [default: 16777216].
+    /// Texel budget: where the scene would need more texels, the density is lowered to fit [default: 1048576; preview 262144, production 4194304].
     #[arg(long)]
     max_texels: Option<u64>,
     /// Direct-light samples per texel (emitter samples and hemisphere rays each) [default: 64].
