@@ -21,6 +21,7 @@
 
 use crate::direct::{hemisphere_light, Directional, Lights, Mis};
 use crate::form_factors::raycast::{Landing, Surfaces};
+use crate::raycast::Hit;
 use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -132,6 +133,216 @@ pub struct Extras {
     pub ao_distance: f32,
 }
 
+/// One texel's gather.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TexelGather {
+    mean: Vec3,
+    valid: bool,
+    variance: f32,
+    directional: Directional,
+    ao: f32,
+    cast: u32,
+    light: Vec3,
+}
+
+/// Everything a texel's gather reads: shared by the CPU gather and the
+/// GPU one (`crate::gpu::gather`), which casts the same rays elsewhere.
+pub struct Gatherer<'a> {
+    pub(crate) s: &'a Surfaces<'a>,
+    /// ρ̄ × H₁ per texel: the light a hit on it reflects.
+    reflected: Vec<Vec3>,
+    sampled: &'a [bool],
+    pub(crate) rays: u32,
+    seed: u64,
+    extras: Extras,
+    direct: Option<(&'a Lights, Mis)>,
+}
+
+impl<'a> Gatherer<'a> {
+    /// The gather of `rays` rays per texel over `first_pass` (H₁ per texel);
+    /// the arguments as [`gather`]'s.
+    pub fn new(
+        s: &'a Surfaces<'a>,
+        first_pass: &[Vec3],
+        sampled: &'a [bool],
+        rays: u32,
+        seed: u64,
+        extras: Extras,
+        direct: Option<(&'a Lights, Mis)>,
+    ) -> Self {
+        // Light a hit reflects: the hit texel's mean albedo (over its
+        // footprint, see `texels`) × its first-pass irradiance / π. One
+        // lookup per hit, and no texture detail finer than a texel adds
+        // noise to the gather.
+        let reflected = s
+            .texels
+            .albedo
+            .iter()
+            .zip(first_pass)
+            .map(|(&rho, &h)| rho * h)
+            .collect();
+        Gatherer {
+            s,
+            reflected,
+            sampled,
+            rays,
+            seed,
+            extras,
+            direct,
+        }
+    }
+
+    /// Every ray texel `t` may cast, in order (origin off the surface,
+    /// direction): what [`Gatherer::texel`] casts, before it stops early
+    /// on an invalid texel.
+    #[cfg_attr(not(feature = "preview"), allow(dead_code))]
+    pub(crate) fn rays_of(&self, t: usize, out: &mut [(Vec3, Vec3)]) {
+        let mut rng = Stream::new(self.seed, PURPOSE, t as u64);
+        let strata = rng.permutation(self.rays);
+        for (k, o) in out.iter_mut().enumerate().take(self.rays as usize) {
+            let (p, ng, dir) = texel_ray(self.s, t, k as u32, self.rays, &strata, &mut rng);
+            *o = (offset_ray_origin(p, ng), dir);
+        }
+    }
+
+    /// Texel `t`'s gather; `cast(k, origin, dir)` is the closest hit of its
+    /// ray `k`.
+    pub(crate) fn texel(
+        &self,
+        t: usize,
+        mut cast: impl FnMut(u32, Vec3, Vec3) -> Option<Hit>,
+    ) -> TexelGather {
+        let (s, g, extras, rays) = (self.s, self.s.geometry, self.extras, self.rays);
+        let mut rng = Stream::new(self.seed, PURPOSE, t as u64);
+        // Pair position strata with direction strata at random.
+        let strata = rng.permutation(rays);
+        let (mut sum, mut back, mut sq) = (Vec3::ZERO, 0u32, 0.0f32);
+        let mut dir_sum: Directional = [Vec3::ZERO; 3];
+        let mut open = 0u32;
+        let mut light = Vec3::ZERO;
+        let mut n_cast = 0u32;
+        for k in 0..rays {
+            // Once more rays have met back faces than an invalid
+            // texel needs, the texel is invalid whatever the rest
+            // would find (its value is replaced from its chart), so
+            // stop: texels inside walls are a quarter of Sponza's.
+            if too_many_back_faces(back, rays) {
+                break;
+            }
+            n_cast += 1;
+            let (p, ng, dir) = texel_ray(s, t, k, rays, &strata, &mut rng);
+            // Radiance for the directional part: everything seen.
+            let mut seen = Vec3::ZERO;
+            let hit = cast(k, offset_ray_origin(p, ng), dir);
+            let landing = match hit {
+                Some(h) => s.land(h.tri, h.u, h.v, dir),
+                None => Landing::Escaped,
+            };
+            if let Some((lights, mis)) = self.direct {
+                light += hemisphere_light(s, lights, mis, (p, ng, dir), (landing, hit));
+            }
+            if extras.ao_distance > 0.0 && hit.is_none_or(|h| h.t >= extras.ao_distance) {
+                open += 1;
+            }
+            match (landing, hit) {
+                (Landing::Texel(h), Some(hit)) => {
+                    let tri = hit.tri as usize;
+                    let m = g.material[tri];
+                    let uv0 = g.uv0_at(hit.tri, hit.u, hit.v);
+                    let mut l = self.reflected[h as usize];
+                    let front = g.ng_ws[tri].dot(dir) < 0.0;
+                    if front && !self.sampled[m as usize] {
+                        l += s.scene.emission_at(m, uv0);
+                    }
+                    sum += l;
+                    let lum = l.element_sum() / 3.0;
+                    sq += lum * lum;
+                    seen = l;
+                    if front && self.sampled[m as usize] && extras.directional {
+                        seen += s.scene.emission_at(m, uv0);
+                    }
+                }
+                (Landing::BackFace, _) => back += 1,
+                (Landing::Escaped, _) => seen = extras.sky,
+                _ => {}
+            }
+            if extras.directional {
+                // b = ∫ L ω dω / 2π with pdf cos θ / π: the normal
+                // part of ω / (2 cos θ) is exactly n / 2; the
+                // tangential part is divided by a cos θ clamped at
+                // 0.25, bounding its variance (grazing light's
+                // tangential pull is underestimated).
+                let cos = ng.dot(dir);
+                let v = ng * 0.5 + (dir - ng * cos) * (0.5 / cos.max(0.25));
+                for (c, b) in dir_sum.iter_mut().enumerate() {
+                    *b += seen * v[c];
+                }
+            }
+        }
+        let n = n_cast as f32;
+        let mean = sum / n;
+        let lum = mean.element_sum() / 3.0;
+        TexelGather {
+            mean,
+            valid: !too_many_back_faces(back, rays),
+            variance: ((sq / n - lum * lum).max(0.0)) / n,
+            directional: dir_sum.map(|b| b / n),
+            ao: open as f32 / n,
+            cast: n_cast,
+            light: light / n,
+        }
+    }
+
+    /// Every texel's gather, its rays cast on the CPU.
+    pub fn gather_cpu(&self, advance: &(dyn Fn(u64) + Sync)) -> Gathered {
+        let s = self.s;
+        let n = s.texels.len();
+        let chunk = 256;
+        let parts: Vec<Vec<TexelGather>> = (0..n.div_ceil(chunk))
+            .into_par_iter()
+            .map(|c| {
+                let range = c * chunk..((c + 1) * chunk).min(n);
+                let out: Vec<TexelGather> = range
+                    .map(|t| self.texel(t, |_, o, d| s.rays.closest_hit(o, d, f32::INFINITY)))
+                    .collect();
+                advance(out.len() as u64);
+                out
+            })
+            .collect();
+        self.assemble(parts.into_iter().flatten())
+    }
+
+    /// The texels' gathers, in texel order, as [`Gathered`].
+    pub(crate) fn assemble(&self, texels: impl IntoIterator<Item = TexelGather>) -> Gathered {
+        let n = self.s.texels.len();
+        let mut gathered = Gathered {
+            indirect: Vec::with_capacity(n),
+            valid: Vec::with_capacity(n),
+            variance: Vec::with_capacity(n),
+            directional: Vec::new(),
+            ao: Vec::new(),
+            direct: Vec::new(),
+            rays: 0,
+        };
+        for x in texels {
+            gathered.rays += x.cast as u64;
+            gathered.indirect.push(x.mean);
+            gathered.valid.push(x.valid);
+            gathered.variance.push(x.variance);
+            if self.extras.directional {
+                gathered.directional.push(x.directional);
+            }
+            if self.extras.ao_distance > 0.0 {
+                gathered.ao.push(x.ao);
+            }
+            if self.direct.is_some() {
+                gathered.direct.push(x.light);
+            }
+        }
+        gathered
+    }
+}
+
 /// Gathers `rays` rays per texel. `first_pass` is H₁ per texel; `sampled`
 /// flags the materials whose emission is already in the direct light.
 /// With `direct`, the rays also estimate the hemisphere part of the direct
@@ -149,131 +360,5 @@ pub fn gather(
     direct: Option<(&Lights, Mis)>,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Gathered {
-    let n = s.texels.len();
-    let g = s.geometry;
-    let chunk = 256;
-    // Light a hit reflects: the hit texel's mean albedo (over its footprint,
-    // see `texels`) × its first-pass irradiance / π. One lookup per hit, and
-    // no texture detail finer than a texel adds noise to the gather.
-    let reflected: Vec<Vec3> = s
-        .texels
-        .albedo
-        .iter()
-        .zip(first_pass)
-        .map(|(&rho, &h)| rho * h)
-        .collect();
-    type Texel = (Vec3, bool, f32, Directional, f32, u32, Vec3);
-    let parts: Vec<Vec<Texel>> = (0..n.div_ceil(chunk))
-        .into_par_iter()
-        .map(|c| {
-            let range = c * chunk..((c + 1) * chunk).min(n);
-            let mut out = Vec::with_capacity(range.len());
-            for t in range {
-                let mut rng = Stream::new(seed, PURPOSE, t as u64);
-                // Pair position strata with direction strata at random.
-                let strata = rng.permutation(rays);
-                let (mut sum, mut back, mut sq) = (Vec3::ZERO, 0u32, 0.0f32);
-                let mut dir_sum: Directional = [Vec3::ZERO; 3];
-                let mut open = 0u32;
-                let mut light = Vec3::ZERO;
-                let mut cast = 0u32;
-                for k in 0..rays {
-                    // Once more rays have met back faces than an invalid
-                    // texel needs, the texel is invalid whatever the rest
-                    // would find (its value is replaced from its chart), so
-                    // stop: texels inside walls are a quarter of Sponza's.
-                    if too_many_back_faces(back, rays) {
-                        break;
-                    }
-                    cast += 1;
-                    let (p, ng, dir) = texel_ray(s, t, k, rays, &strata, &mut rng);
-                    // Radiance for the directional part: everything seen.
-                    let mut seen = Vec3::ZERO;
-                    let (landing, hit) = s.trace(offset_ray_origin(p, ng), dir);
-                    if let Some((lights, mis)) = direct {
-                        light += hemisphere_light(s, lights, mis, (p, ng, dir), (landing, hit));
-                    }
-                    if extras.ao_distance > 0.0 && hit.is_none_or(|h| h.t >= extras.ao_distance) {
-                        open += 1;
-                    }
-                    match (landing, hit) {
-                        (Landing::Texel(h), Some(hit)) => {
-                            let tri = hit.tri as usize;
-                            let m = g.material[tri];
-                            let uv0 = g.uv0_at(hit.tri, hit.u, hit.v);
-                            let mut l = reflected[h as usize];
-                            let front = g.ng_ws[tri].dot(dir) < 0.0;
-                            if front && !sampled[m as usize] {
-                                l += s.scene.emission_at(m, uv0);
-                            }
-                            sum += l;
-                            let lum = l.element_sum() / 3.0;
-                            sq += lum * lum;
-                            seen = l;
-                            if front && sampled[m as usize] && extras.directional {
-                                seen += s.scene.emission_at(m, uv0);
-                            }
-                        }
-                        (Landing::BackFace, _) => back += 1,
-                        (Landing::Escaped, _) => seen = extras.sky,
-                        _ => {}
-                    }
-                    if extras.directional {
-                        // b = ∫ L ω dω / 2π with pdf cos θ / π: the normal
-                        // part of ω / (2 cos θ) is exactly n / 2; the
-                        // tangential part is divided by a cos θ clamped at
-                        // 0.25, bounding its variance (grazing light's
-                        // tangential pull is underestimated).
-                        let cos = ng.dot(dir);
-                        let v = ng * 0.5 + (dir - ng * cos) * (0.5 / cos.max(0.25));
-                        for (c, b) in dir_sum.iter_mut().enumerate() {
-                            *b += seen * v[c];
-                        }
-                    }
-                }
-                let valid = !too_many_back_faces(back, rays);
-                let n = cast as f32;
-                let mean = sum / n;
-                let lum = mean.element_sum() / 3.0;
-                let variance = ((sq / n - lum * lum).max(0.0)) / n;
-                let dir_mean = dir_sum.map(|b| b / n);
-                out.push((
-                    mean,
-                    valid,
-                    variance,
-                    dir_mean,
-                    open as f32 / n,
-                    cast,
-                    light / n,
-                ));
-            }
-            advance(out.len() as u64);
-            out
-        })
-        .collect();
-    let mut gathered = Gathered {
-        indirect: Vec::with_capacity(n),
-        valid: Vec::with_capacity(n),
-        variance: Vec::with_capacity(n),
-        directional: Vec::new(),
-        ao: Vec::new(),
-        direct: Vec::new(),
-        rays: 0,
-    };
-    for (v, ok, var, d, ao, cast, light) in parts.into_iter().flatten() {
-        gathered.rays += cast as u64;
-        gathered.indirect.push(v);
-        gathered.valid.push(ok);
-        gathered.variance.push(var);
-        if extras.directional {
-            gathered.directional.push(d);
-        }
-        if extras.ao_distance > 0.0 {
-            gathered.ao.push(ao);
-        }
-        if direct.is_some() {
-            gathered.direct.push(light);
-        }
-    }
-    gathered
+    Gatherer::new(s, first_pass, sampled, rays, seed, extras, direct).gather_cpu(advance)
 }

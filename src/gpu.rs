@@ -12,6 +12,7 @@
 
 use crate::form_factors::raycast::{row_from_hits, row_rays, Surfaces};
 use crate::form_factors::{FormFactorStats, FormFactors};
+use crate::gather::{Gathered, Gatherer};
 use crate::geometry::Geometry;
 use crate::raycast::Hit;
 use anyhow::{anyhow, bail, Context as _, Result};
@@ -450,14 +451,85 @@ fn gpu_ray(o: Vec3, d: Vec3) -> GpuRay {
     }
 }
 
+/// Casts the rays of `count` items (patches, texels), `per_item` rays each,
+/// in batches of about 2²⁰ rays, pipelined over two buffer slots: while the
+/// GPU casts batch k, the CPU generates batch k + 1 (`generate`: the
+/// batch's rays in the shader's layout, `per_item` per item in item order,
+/// and whatever else `consume` needs) and, once that is submitted, hands
+/// batch k's hits to `consume`. Batches are consumed in order, so results
+/// do not depend on the timing.
+fn pipelined<T>(
+    gpu: &GpuRayCaster,
+    count: usize,
+    per_item: usize,
+    generate: impl Fn(std::ops::Range<usize>) -> (T, Vec<GpuRay>),
+    mut consume: impl FnMut(std::ops::Range<usize>, T, &[GpuHit]),
+) -> Result<()> {
+    let per_item = per_item.max(1);
+    let per_batch = (BATCH / per_item).max(1);
+    let batches: Vec<std::ops::Range<usize>> = (0..count)
+        .step_by(per_batch)
+        .map(|a| a..(a + per_batch).min(count))
+        .collect();
+    let Some(first) = batches.first() else {
+        return Ok(());
+    };
+    let capacity = per_batch.min(count) * per_item;
+    let slots = [gpu.slot(capacity), gpu.slot(capacity)];
+    let (mut data, flat) = generate(first.clone());
+    let mut pending = Some(gpu.submit(&slots[0], &flat));
+    for (b, range) in batches.iter().enumerate() {
+        let next = batches.get(b + 1).map(|r| generate(r.clone()));
+        let this = pending
+            .take()
+            .ok_or_else(|| anyhow!("batch {b} was not submitted"))?;
+        let hits = gpu
+            .wait(&slots[b % 2], this)
+            .context("GPU ray casting failed")?;
+        let mut next_data = None;
+        if let Some((d, next_flat)) = next {
+            pending = Some(gpu.submit(&slots[(b + 1) % 2], &next_flat));
+            next_data = Some(d);
+        }
+        consume(range.clone(), data, &hits);
+        match next_data {
+            Some(d) => data = d,
+            None => break,
+        }
+    }
+    Ok(())
+}
+
+/// A GPU hit, re-cast on the CPU where it landed on a cut-out (alpha-masked)
+/// triangle, whose texture the shader does not test.
+fn resolve_hit(
+    s: &Surfaces,
+    gpu: &GpuRayCaster,
+    masked: &[bool],
+    h: &GpuHit,
+    o: Vec3,
+    d: Vec3,
+) -> Option<Hit> {
+    match gpu.hit(h) {
+        Some(hit) if masked[s.geometry.material[hit.tri as usize] as usize] => {
+            s.rays.closest_hit(o, d, f32::INFINITY)
+        }
+        other => other,
+    }
+}
+
+/// Per material: alpha-masked?
+fn masked_materials(s: &Surfaces) -> Vec<bool> {
+    s.scene
+        .materials
+        .iter()
+        .map(|m| matches!(m.alpha, crate::scene::Alpha::Mask { .. }))
+        .collect()
+}
+
 /// Form factors by ray casting with the rays cast on the GPU: the rows of
 /// [`crate::form_factors::raycast::compute`], rays generated and hits
-/// counted on the CPU, patches in batches of about a million rays.
-///
-/// Pipelined over two buffer slots: while the GPU casts batch k, the CPU
-/// generates batch k + 1 and, once it is submitted, turns batch k's hits
-/// into rows. Rows are kept in patch order, so the result does not depend
-/// on the timing.
+/// counted on the CPU, [`pipelined`].
 ///
 /// # Errors
 /// GPU failures (the caller falls back to the CPU).
@@ -470,85 +542,101 @@ pub fn form_factors(
 ) -> Result<FormFactors> {
     let n = s.patches.len();
     let rpp = rays_per_patch.max(1) as usize;
-    let per_batch = (BATCH / rpp).max(1);
-    let masked: Vec<bool> = s
-        .scene
-        .materials
-        .iter()
-        .map(|m| matches!(m.alpha, crate::scene::Alpha::Mask { .. }))
-        .collect();
-    let batches: Vec<std::ops::Range<usize>> = (0..n)
-        .step_by(per_batch)
-        .map(|a| a..(a + per_batch).min(n))
-        .collect();
-    // Rays of a batch: per patch (for the rows) and flat in the shader's layout.
-    let generate = |r: &std::ops::Range<usize>| {
-        let rays: Vec<Vec<(Vec3, Vec3)>> = r
-            .clone()
-            .into_par_iter()
-            .map(|i| row_rays(s, i, rays_per_patch, seed))
-            .collect();
-        let mut flat = vec![GpuRay::zeroed(); rays.len() * rpp];
-        flat.par_chunks_mut(rpp).zip(&rays).for_each(|(out, row)| {
-            for (g, &(o, d)) in out.iter_mut().zip(row) {
-                *g = gpu_ray(o, d);
-            }
-        });
-        (rays, flat)
-    };
-    let slots = [
-        gpu.slot(per_batch.min(n) * rpp),
-        gpu.slot(per_batch.min(n) * rpp),
-    ];
+    let masked = masked_materials(s);
     let mut rows = Vec::with_capacity(n);
     let mut stats = FormFactorStats::default();
-    let Some(first) = batches.first() else {
-        return Ok(FormFactors::from_rows(0, rows, stats));
-    };
-    let (mut rays, flat) = generate(first);
-    let mut pending = Some(gpu.submit(&slots[0], &flat));
-    for (b, range) in batches.iter().enumerate() {
-        let next = batches.get(b + 1).map(&generate);
-        let this = pending
-            .take()
-            .ok_or_else(|| anyhow!("batch {b} was not submitted"))?;
-        let hits = gpu
-            .wait(&slots[b % 2], this)
-            .context("GPU ray casting failed")?;
-        let mut next_rays = None;
-        if let Some((r, next_flat)) = next {
-            pending = Some(gpu.submit(&slots[(b + 1) % 2], &next_flat));
-            next_rays = Some(r);
-        }
-        let results: Vec<_> = (range.start..range.end)
-            .into_par_iter()
-            .map(|i| {
-                let k0 = (i - range.start) * rpp;
-                let row = &rays[i - range.start];
-                let row_hits: Vec<Option<Hit>> = hits[k0..k0 + rpp]
-                    .iter()
-                    .zip(row)
-                    .map(|(h, &(o, d))| match gpu.hit(h) {
-                        // Cut-outs are tested on the CPU.
-                        Some(hit) if masked[s.geometry.material[hit.tri as usize] as usize] => {
-                            s.rays.closest_hit(o, d, f32::INFINITY)
-                        }
-                        other => other,
-                    })
-                    .collect();
-                let r = row_from_hits(s, row, &row_hits);
-                advance(1);
-                r
-            })
-            .collect();
-        for (r, st) in results {
-            stats.add(&st);
-            rows.push(r);
-        }
-        match next_rays {
-            Some(r) => rays = r,
-            None => break,
-        }
-    }
+    pipelined(
+        gpu,
+        n,
+        rpp,
+        |range| {
+            let rays: Vec<Vec<(Vec3, Vec3)>> = range
+                .into_par_iter()
+                .map(|i| row_rays(s, i, rays_per_patch, seed))
+                .collect();
+            let mut flat = vec![GpuRay::zeroed(); rays.len() * rpp];
+            flat.par_chunks_mut(rpp).zip(&rays).for_each(|(out, row)| {
+                for (g, &(o, d)) in out.iter_mut().zip(row) {
+                    *g = gpu_ray(o, d);
+                }
+            });
+            (rays, flat)
+        },
+        |range, rays, hits| {
+            let results: Vec<_> = range
+                .clone()
+                .into_par_iter()
+                .map(|i| {
+                    let k0 = (i - range.start) * rpp;
+                    let row = &rays[i - range.start];
+                    let row_hits: Vec<Option<Hit>> = hits[k0..k0 + rpp]
+                        .iter()
+                        .zip(row)
+                        .map(|(h, &(o, d))| resolve_hit(s, gpu, &masked, h, o, d))
+                        .collect();
+                    let r = row_from_hits(s, row, &row_hits);
+                    advance(1);
+                    r
+                })
+                .collect();
+            for (r, st) in results {
+                stats.add(&st);
+                rows.push(r);
+            }
+        },
+    )?;
     Ok(FormFactors::from_rows(n, rows, stats))
+}
+
+/// The final gather ([`crate::gather::gather`]) with its rays cast on the
+/// GPU, [`pipelined`]: every ray a texel may cast is cast (the CPU stops
+/// early on texels found invalid), then each texel's gather runs on the CPU
+/// over those hits, in the same order, so the result is the CPU's.
+///
+/// # Errors
+/// GPU failures (the caller falls back to the CPU).
+pub(crate) fn gather(
+    gatherer: &Gatherer,
+    gpu: &GpuRayCaster,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Result<Gathered> {
+    let s = gatherer.s;
+    let n = s.texels.len();
+    let per = gatherer.rays.max(1) as usize;
+    let masked = masked_materials(s);
+    let mut texels = Vec::with_capacity(n);
+    pipelined(
+        gpu,
+        n,
+        per,
+        |range| {
+            let mut flat = vec![GpuRay::zeroed(); range.len() * per];
+            flat.par_chunks_mut(per).zip(range).for_each_init(
+                || vec![(Vec3::ZERO, Vec3::ZERO); per],
+                |rays, (out, t)| {
+                    gatherer.rays_of(t, rays);
+                    for (g, &(o, d)) in out.iter_mut().zip(rays.iter()) {
+                        *g = gpu_ray(o, d);
+                    }
+                },
+            );
+            ((), flat)
+        },
+        |range, (), hits| {
+            let start = range.start;
+            let done: Vec<_> = range
+                .into_par_iter()
+                .with_min_len(64)
+                .map(|t| {
+                    let k0 = (t - start) * per;
+                    gatherer.texel(t, |k, o, d| {
+                        resolve_hit(s, gpu, &masked, &hits[k0 + k as usize], o, d)
+                    })
+                })
+                .collect();
+            advance(done.len() as u64);
+            texels.extend(done);
+        },
+    )?;
+    Ok(gatherer.assemble(texels))
 }

@@ -192,6 +192,8 @@ pub fn bake<'s>(
         patches: &patches,
         rays: &rays,
     };
+    // `device = "gpu"`: one GPU ray caster for the form factors and the final gather.
+    let gpu = gpu_caster(&surfaces, config, &mut warnings);
     let advance = |n| progress.advance(n);
     let solved = match config.method {
         config::Method::Radiosity => {
@@ -214,8 +216,8 @@ pub fn bake<'s>(
                 if progressive { 0 } else { patches.len() as u64 },
             );
             let form_factors = (!progressive).then(|| match config.form_factors {
-                config::FormFactorMethod::Raycast if config.device == config::Device::Gpu => {
-                    gpu_form_factors(&surfaces, config, &advance, &mut warnings)
+                config::FormFactorMethod::Raycast if gpu.is_some() => {
+                    gpu_form_factors(gpu.as_ref(), &surfaces, config, &advance, &mut warnings)
                 }
                 config::FormFactorMethod::Raycast => form_factors::raycast::compute(
                     &surfaces,
@@ -409,7 +411,7 @@ pub fn bake<'s>(
             let mut ao: Vec<f32> = Vec::new();
             let (texel_values, valid, gather_rays) = if config.final_gather > 0 {
                 timer.begin("final_gather", texels.len() as u64);
-                let g = gather::gather(
+                let gatherer = gather::Gatherer::new(
                     &surfaces,
                     &first,
                     &sampled,
@@ -417,8 +419,8 @@ pub fn bake<'s>(
                     config.seed,
                     extras,
                     gathering.then_some((&lights, mis)),
-                    &advance,
                 );
+                let g = final_gather(gpu.as_ref(), &gatherer, &advance, &mut warnings);
                 if gathering {
                     texel_direct = first_direct
                         .light
@@ -600,36 +602,102 @@ pub fn bake<'s>(
     })
 }
 
+/// The GPU ray caster of `device = "gpu"` (wgpu, feature `preview`).
+#[cfg(feature = "preview")]
+type GpuCaster = gpu::GpuRayCaster;
+/// Without the `preview` feature there is none.
+#[cfg(not(feature = "preview"))]
+type GpuCaster = std::convert::Infallible;
+
+/// The GPU ray caster where `device = "gpu"` and a ray-casting stage will
+/// use it (ray-cast form factors, the final gather); `None`, with a warning
+/// saying why, where there is no adapter or the shader fails (the bake then
+/// casts every ray on the CPU).
+fn gpu_caster(
+    surfaces: &Surfaces,
+    config: &BakeConfig,
+    warnings: &mut Vec<String>,
+) -> Option<GpuCaster> {
+    let uses = config.method == config::Method::Radiosity
+        && ((config.form_factors == config::FormFactorMethod::Raycast
+            && config.solver != config::Solver::Progressive)
+            || config.final_gather > 0);
+    if config.device != config::Device::Gpu || !uses {
+        return None;
+    }
+    #[cfg(feature = "preview")]
+    {
+        match gpu::GpuRayCaster::new(surfaces.geometry) {
+            Ok(g) => {
+                warnings.push(format!(
+                    "form-factor and final-gather rays cast on the GPU: {}",
+                    g.adapter
+                ));
+                Some(g)
+            }
+            Err(e) => {
+                warnings.push(format!("device = \"gpu\": {e:#}; all rays cast on the CPU"));
+                None
+            }
+        }
+    }
+    #[cfg(not(feature = "preview"))]
+    {
+        let _ = surfaces;
+        warnings.push(
+            "device = \"gpu\" needs the `preview` feature (wgpu); all rays cast on the CPU".into(),
+        );
+        None
+    }
+}
+
 /// Ray-cast form factors with the rays cast on the GPU ([`gpu`]); on the
-/// CPU, with a warning, where there is no adapter or the GPU fails.
+/// CPU, with a warning, where the GPU fails.
 fn gpu_form_factors(
+    gpu: Option<&GpuCaster>,
     surfaces: &Surfaces,
     config: &BakeConfig,
     advance: &(dyn Fn(u64) + Sync),
     warnings: &mut Vec<String>,
 ) -> FormFactors {
     #[cfg(feature = "preview")]
-    {
-        let result = gpu::GpuRayCaster::new(surfaces.geometry).and_then(|g| {
-            gpu::form_factors(surfaces, &g, config.rays_per_patch, config.seed, advance)
-                .map(|ff| (ff, g.adapter.clone()))
-        });
-        match result {
-            Ok((ff, adapter)) => {
-                warnings.push(format!("form factors cast on the GPU: {adapter}"));
-                return ff;
-            }
+    if let Some(g) = gpu {
+        match gpu::form_factors(surfaces, g, config.rays_per_patch, config.seed, advance) {
+            Ok(ff) => return ff,
             Err(e) => warnings.push(format!(
                 "device = \"gpu\": {e:#}; form factors computed on the CPU"
             )),
         }
     }
     #[cfg(not(feature = "preview"))]
-    warnings.push(
-        "device = \"gpu\" needs the `preview` feature (wgpu); form factors computed on the CPU"
-            .into(),
-    );
+    if let Some(g) = gpu {
+        match *g {}
+    }
+    let _ = &warnings;
     form_factors::raycast::compute(surfaces, config.rays_per_patch, config.seed, advance)
+}
+
+/// The final gather, its rays cast on the GPU where there is one ([`gpu`]);
+/// on the CPU, with a warning, where the GPU fails.
+fn final_gather(
+    gpu: Option<&GpuCaster>,
+    gatherer: &gather::Gatherer,
+    advance: &(dyn Fn(u64) + Sync),
+    warnings: &mut Vec<String>,
+) -> gather::Gathered {
+    #[cfg(feature = "preview")]
+    if let Some(g) = gpu {
+        match gpu::gather(gatherer, g, advance) {
+            Ok(gathered) => return gathered,
+            Err(e) => warnings.push(format!("device = \"gpu\": {e:#}; final gather on the CPU")),
+        }
+    }
+    #[cfg(not(feature = "preview"))]
+    if let Some(g) = gpu {
+        match *g {}
+    }
+    let _ = &warnings;
+    gatherer.gather_cpu(advance)
 }
 
 /// What the light-transport stage hands to the lightmap stage.
