@@ -191,9 +191,9 @@ pub fn build(
         .map(|p| {
             let mut values = vec![Vec3::ZERO; (w * h) as usize];
             let mut filled = vec![false; (w * h) as usize];
-            for (i, &t) in texels.index[p as usize].iter().enumerate() {
-                if t != crate::texels::EMPTY {
-                    values[i] = texel_values[t as usize];
+            for (i, &e) in texels.index[p as usize].iter().enumerate() {
+                if e != crate::texels::EMPTY_ENTRY {
+                    values[i] = texel_values[e as u32 as usize];
                     filled[i] = true;
                 }
             }
