@@ -20,9 +20,9 @@
 //! it is marked invalid and later filled from valid texels of its chart.
 
 use crate::direct::{hemisphere_light, Directional, Lights, Mis};
-use crate::form_factors::raycast::{Landing, Surfaces};
+use crate::form_factors::raycast::{Landing, Surfaces, TexelSampler};
 use crate::raycast::Hit;
-use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
+use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, Stream};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -42,18 +42,14 @@ fn too_many_back_faces(back: u32, rays: u32) -> bool {
 /// `strata[k]` (a random pairing, see [`Stream::permutation`]) and a
 /// cosine-weighted direction of stratum `k`. Returns (point, normal, direction).
 fn texel_ray(
-    s: &Surfaces,
-    t: usize,
+    sampler: &TexelSampler,
     k: u32,
     rays: u32,
     strata: &[u32],
     rng: &mut Stream,
 ) -> (Vec3, Vec3, Vec3) {
-    let (p, ng) = s.sample_texel(
-        t as u32,
-        stratified(strata[k as usize], rays, rng.next_vec2()),
-    );
-    let dir = to_world(cosine_hemisphere(stratified(k, rays, rng.next_vec2())), ng);
+    let (p, ng) = sampler.sample(stratified(strata[k as usize], rays, rng.next_vec2()));
+    let dir = sampler.to_world(cosine_hemisphere(stratified(k, rays, rng.next_vec2())));
     (p, ng, dir)
 }
 
@@ -79,13 +75,14 @@ pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<bool>, u64) {
             for t in range {
                 let mut rng = Stream::new(seed, VALIDITY_PURPOSE, t as u64);
                 let strata = rng.permutation(rays);
+                let sampler = s.texel_sampler(t as u32);
                 let mut back = 0u32;
                 for k in 0..rays {
                     if too_many_back_faces(back, rays) {
                         break;
                     }
                     cast += 1;
-                    let (p, ng, dir) = texel_ray(s, t, k, rays, &strata, &mut rng);
+                    let (p, ng, dir) = texel_ray(&sampler, k, rays, &strata, &mut rng);
                     if let (Landing::BackFace, _) = s.trace(offset_ray_origin(p, ng), dir) {
                         back += 1;
                     }
@@ -199,8 +196,9 @@ impl<'a> Gatherer<'a> {
     pub(crate) fn rays_of(&self, t: usize, out: &mut [(Vec3, Vec3)]) {
         let mut rng = Stream::new(self.seed, PURPOSE, t as u64);
         let strata = rng.permutation(self.rays);
+        let sampler = self.s.texel_sampler(t as u32);
         for (k, o) in out.iter_mut().enumerate().take(self.rays as usize) {
-            let (p, ng, dir) = texel_ray(self.s, t, k as u32, self.rays, &strata, &mut rng);
+            let (p, ng, dir) = texel_ray(&sampler, k as u32, self.rays, &strata, &mut rng);
             *o = (offset_ray_origin(p, ng), dir);
         }
     }
@@ -216,6 +214,7 @@ impl<'a> Gatherer<'a> {
         let mut rng = Stream::new(self.seed, PURPOSE, t as u64);
         // Pair position strata with direction strata at random.
         let strata = rng.permutation(rays);
+        let sampler = s.texel_sampler(t as u32);
         let (mut sum, mut back, mut sq) = (Vec3::ZERO, 0u32, 0.0f32);
         let mut dir_sum: Directional = [Vec3::ZERO; 3];
         let mut open = 0u32;
@@ -230,7 +229,7 @@ impl<'a> Gatherer<'a> {
                 break;
             }
             n_cast += 1;
-            let (p, ng, dir) = texel_ray(s, t, k, rays, &strata, &mut rng);
+            let (p, ng, dir) = texel_ray(&sampler, k, rays, &strata, &mut rng);
             // Radiance for the directional part: everything seen.
             let mut seen = Vec3::ZERO;
             let hit = cast(k, offset_ray_origin(p, ng), dir);

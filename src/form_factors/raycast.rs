@@ -10,7 +10,7 @@ use crate::patches::Patches;
 use crate::raycast::{Hit, RayCaster};
 use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
 use crate::scene::Scene;
-use crate::texels::{barycentric, Texels};
+use crate::texels::Texels;
 use glam::{Vec2, Vec3};
 
 /// Stream purpose id of form-factor rays.
@@ -65,20 +65,28 @@ impl Surfaces<'_> {
 
     /// A point of texel `t` (see [`Surfaces::sample_patch`]) and its normal.
     pub fn sample_texel(&self, t: u32, jitter: Vec2) -> (Vec3, Vec3) {
+        self.texel_sampler(t).sample(jitter)
+    }
+
+    /// Texel `t`'s sampling constants, for drawing many points from it
+    /// ([`TexelSampler::sample`] gives exactly [`Surfaces::sample_texel`]'s
+    /// points, without re-reading the triangle for each).
+    pub fn texel_sampler(&self, t: u32) -> TexelSampler {
         let t = t as usize;
         let tri = self.texels.triangle[t];
         let [x, y] = self.texels.xy[t];
-        let q = Vec2::new(x as f32, y as f32) + jitter;
-        // Points outside the triangle (texels it covers partly) are clamped
-        // onto it, and every point is kept a hair inside its edges: a ray
-        // leaving exactly from an edge that meets another face can slip
-        // through the crack between them.
-        let w = barycentric(&self.geometry.uv_lm[tri as usize], q).max(glam::Vec3::splat(1e-4));
-        let w = w / w.element_sum();
-        (
-            self.geometry.point(tri, w.y, w.z),
-            self.geometry.ng_ws[tri as usize],
-        )
+        let uv = &self.geometry.uv_lm[tri as usize];
+        let ng = self.geometry.ng_ws[tri as usize];
+        TexelSampler {
+            corner: Vec2::new(x as f32, y as f32),
+            uv0: uv[0],
+            uv_e1: uv[1] - uv[0],
+            uv_e2: uv[2] - uv[0],
+            uv_det: (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]),
+            p: self.geometry.p_ws[tri as usize],
+            ng,
+            frame: crate::sampling::frame(ng),
+        }
     }
 
     /// Where a ray from `origin` along `dir` lands.
@@ -124,6 +132,49 @@ impl Surfaces<'_> {
         let w = glam::Vec3::new(1.0 - u - v, u, v).max(glam::Vec3::ZERO);
         let w = w / w.element_sum();
         self.land(tri, w.y, w.z, dir)
+    }
+}
+
+/// One texel's sampling constants ([`Surfaces::texel_sampler`]): its main
+/// triangle in the lightmap and in the world, and the frame of its normal.
+#[derive(Clone, Copy, Debug)]
+pub struct TexelSampler {
+    corner: Vec2,
+    uv0: Vec2,
+    uv_e1: Vec2,
+    uv_e2: Vec2,
+    uv_det: f32,
+    p: [Vec3; 3],
+    /// Geometric normal (world, unit).
+    pub ng: Vec3,
+    frame: (Vec3, Vec3),
+}
+
+impl TexelSampler {
+    /// The surface point at `jitter` ∈ [0, 1)² of the texel, and the normal.
+    /// Points outside the triangle (texels it covers partly) are clamped
+    /// onto it, and every point is kept a hair inside its edges: a ray
+    /// leaving exactly from an edge that meets another face can slip
+    /// through the crack between them. (The arithmetic of
+    /// [`crate::texels::barycentric`] and [`crate::geometry::Geometry::point`].)
+    #[inline]
+    pub fn sample(&self, jitter: Vec2) -> (Vec3, Vec3) {
+        let q = self.corner + jitter;
+        let w1 = (q - self.uv0).perp_dot(self.uv_e2) / self.uv_det;
+        let w2 = self.uv_e1.perp_dot(q - self.uv0) / self.uv_det;
+        let w = glam::Vec3::new(1.0 - w1 - w2, w1, w2).max(glam::Vec3::splat(1e-4));
+        let w = w / w.element_sum();
+        let (u, v) = (w.y, w.z);
+        let p = self.p[0] * (1.0 - u - v) + self.p[1] * u + self.p[2] * v;
+        (p, self.ng)
+    }
+
+    /// A local (+Z up) direction in the world, around the texel's normal
+    /// ([`crate::sampling::to_world`]).
+    #[inline]
+    pub fn to_world(&self, local: Vec3) -> Vec3 {
+        let (t, b) = self.frame;
+        t * local.x + b * local.y + self.ng * local.z
     }
 }
 
