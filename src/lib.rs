@@ -478,7 +478,7 @@ pub fn bake<'s>(
                 let (v, ok) = trace::reference_texels(
                     &tracer,
                     &texels,
-                    &|t, j| surfaces.sample_texel(t, j),
+                    &|t, j, rng| surfaces.sample_texel_area(t, j, rng),
                     config.path_samples,
                     config.seed,
                     &advance,

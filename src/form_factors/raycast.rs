@@ -68,6 +68,50 @@ impl Surfaces<'_> {
         self.texel_sampler(t).sample(jitter)
     }
 
+    /// A point uniformly distributed over texel `t`'s surface by world
+    /// area, over all of its pieces (one per covering triangle), and the
+    /// normal there: the texel's exact mean is the mean of a function over
+    /// these points. (`sample_texel` keeps to the texel's largest triangle,
+    /// clamping points outside it onto it, which is what the bake's rays
+    /// need; the path-traced reference needs the mean itself.) `jitter`
+    /// picks the piece by area (its x) and the point (both, remapped); a
+    /// point outside the piece's triangle is redrawn from `rng` (up to 64
+    /// times, then the piece's centroid).
+    pub fn sample_texel_area(&self, t: u32, jitter: Vec2, rng: &mut Stream) -> (Vec3, Vec3) {
+        let pieces = self.texels.pieces_of(t as usize);
+        let total: f32 = pieces.iter().map(|p| p.area).sum();
+        if pieces.is_empty() || total <= 0.0 || !total.is_finite() {
+            return self.sample_texel(t, jitter);
+        }
+        let mut x = jitter.x * total;
+        let mut piece = pieces[pieces.len() - 1];
+        let mut jx = 0.5;
+        for p in pieces {
+            if x < p.area {
+                piece = *p;
+                jx = (x / p.area).clamp(0.0, 1.0 - f32::EPSILON);
+                break;
+            }
+            x -= p.area;
+        }
+        let [cx, cy] = self.texels.xy[t as usize];
+        let corner = Vec2::new(cx as f32, cy as f32);
+        let uv = &self.geometry.uv_lm[piece.tri as usize];
+        let ng = self.geometry.ng_ws[piece.tri as usize];
+        let mut q = corner + Vec2::new(jx, jitter.y);
+        for _ in 0..64 {
+            let w = crate::texels::barycentric(uv, q);
+            if w.min_element() >= 0.0 {
+                // A hair inside the edges, as `sample_texel`.
+                let w = w.max(glam::Vec3::splat(1e-4));
+                let w = w / w.element_sum();
+                return (self.geometry.point(piece.tri, w.y, w.z), ng);
+            }
+            q = corner + rng.next_vec2();
+        }
+        (self.geometry.point(piece.tri, piece.u, piece.v), ng)
+    }
+
     /// Texel `t`'s sampling constants, for drawing many points from it
     /// ([`TexelSampler::sample`] gives exactly [`Surfaces::sample_texel`]'s
     /// points, without re-reading the triangle for each).

@@ -372,14 +372,15 @@ fn fresnel_dielectric(cos_i: f32, cos_t: f32, eta: f32) -> f32 {
 }
 
 /// Reference lightmap texels: each texel's H/π by path tracing from
-/// `samples` stratified points over it, independent of patches and form
-/// factors. A texel whose first rays hit back faces more than
+/// `samples` stratified points over it (`sample_texel(t, jitter, rng)`:
+/// uniform over the texel's world area, all its pieces, so the estimate is
+/// the exact texel mean), independent of patches and form factors. A texel whose first rays hit back faces more than
 /// [`crate::gather::BACKFACE_TOLERANCE`] of the time is marked invalid, as
 /// in the final gather. Returns (values, validity, rays' paths started).
 pub fn reference_texels(
     tracer: &Tracer,
     texels: &Texels,
-    sample_texel: &(dyn Fn(u32, Vec2) -> (Vec3, Vec3) + Sync),
+    sample_texel: &(dyn Fn(u32, Vec2, &mut Stream) -> (Vec3, Vec3) + Sync),
     samples: u32,
     seed: u64,
     advance: &(dyn Fn(u64) + Sync),
@@ -396,8 +397,8 @@ pub fn reference_texels(
                     let mut sum = Vec3::ZERO;
                     let mut back = 0u32;
                     for k in 0..samples {
-                        let (p, ng) =
-                            sample_texel(t as u32, stratified(k, samples, rng.next_vec2()));
+                        let jitter = stratified(k, samples, rng.next_vec2());
+                        let (p, ng) = sample_texel(t as u32, jitter, &mut rng);
                         let (h, b) = tracer.incident(p, ng, &mut rng, 0);
                         sum += h;
                         back += b as u32;
