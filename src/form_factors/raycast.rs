@@ -78,50 +78,25 @@ impl Surfaces<'_> {
     /// point outside the piece's triangle is redrawn from `rng` (up to 64
     /// times, then the piece's centroid).
     pub fn sample_texel_area(&self, t: u32, jitter: Vec2, rng: &mut Stream) -> (Vec3, Vec3) {
-        let pieces = self.texels.pieces_of(t as usize);
-        let total: f32 = pieces.iter().map(|p| p.area).sum();
-        if pieces.is_empty() || total <= 0.0 || !total.is_finite() {
-            return self.sample_texel(t, jitter);
-        }
-        let mut x = jitter.x * total;
-        let mut piece = pieces[pieces.len() - 1];
-        let mut jx = 0.5;
-        for p in pieces {
-            if x < p.area {
-                piece = *p;
-                jx = (x / p.area).clamp(0.0, 1.0 - f32::EPSILON);
-                break;
-            }
-            x -= p.area;
-        }
-        let [cx, cy] = self.texels.xy[t as usize];
-        let corner = Vec2::new(cx as f32, cy as f32);
-        let uv = &self.geometry.uv_lm[piece.tri as usize];
-        let ng = self.geometry.ng_ws[piece.tri as usize];
-        let mut q = corner + Vec2::new(jx, jitter.y);
-        for _ in 0..64 {
-            let w = crate::texels::barycentric(uv, q);
-            if w.min_element() >= 0.0 {
-                // A hair inside the edges, as `sample_texel`.
-                let w = w.max(glam::Vec3::splat(1e-4));
-                let w = w / w.element_sum();
-                return (self.geometry.point(piece.tri, w.y, w.z), ng);
-            }
-            q = corner + rng.next_vec2();
-        }
-        (self.geometry.point(piece.tri, piece.u, piece.v), ng)
+        self.texel_sampler(t).sample_area(jitter, rng)
     }
 
     /// Texel `t`'s sampling constants, for drawing many points from it
     /// ([`TexelSampler::sample`] gives exactly [`Surfaces::sample_texel`]'s
-    /// points, without re-reading the triangle for each).
-    pub fn texel_sampler(&self, t: u32) -> TexelSampler {
+    /// points, without re-reading the triangle for each;
+    /// [`TexelSampler::sample_area`] [`Surfaces::sample_texel_area`]'s).
+    pub fn texel_sampler(&self, t: u32) -> TexelSampler<'_> {
         let t = t as usize;
         let tri = self.texels.triangle[t];
         let [x, y] = self.texels.xy[t];
         let uv = &self.geometry.uv_lm[tri as usize];
         let ng = self.geometry.ng_ws[tri as usize];
+        let pieces = self.texels.pieces_of(t);
         TexelSampler {
+            geometry: self.geometry,
+            pieces,
+            total: pieces.iter().map(|p| p.area).sum(),
+            tri,
             corner: Vec2::new(x as f32, y as f32),
             uv0: uv[0],
             uv_e1: uv[1] - uv[0],
@@ -182,7 +157,13 @@ impl Surfaces<'_> {
 /// One texel's sampling constants ([`Surfaces::texel_sampler`]): its main
 /// triangle in the lightmap and in the world, and the frame of its normal.
 #[derive(Clone, Copy, Debug)]
-pub struct TexelSampler {
+pub struct TexelSampler<'a> {
+    geometry: &'a Geometry,
+    pieces: &'a [crate::texels::Piece],
+    /// Σ of the pieces' areas.
+    total: f32,
+    /// The largest triangle.
+    tri: u32,
     corner: Vec2,
     uv0: Vec2,
     uv_e1: Vec2,
@@ -194,7 +175,87 @@ pub struct TexelSampler {
     frame: (Vec3, Vec3),
 }
 
-impl TexelSampler {
+impl TexelSampler<'_> {
+    /// A point uniformly distributed over the texel's surface by world
+    /// area, over all of its pieces, and the normal there (see
+    /// [`Surfaces::sample_texel_area`]).
+    #[inline]
+    pub fn sample_area(&self, jitter: Vec2, rng: &mut Stream) -> (Vec3, Vec3) {
+        if self.pieces.is_empty() || !(self.total > 0.0 && self.total.is_finite()) {
+            return self.sample(jitter);
+        }
+        // The piece, by area, from jitter.x (remapped to stay uniform).
+        let (mut tri, mut jx, mut centroid) = (self.tri, jitter.x, None);
+        if self.pieces.len() > 1 || self.pieces[0].tri != self.tri {
+            let mut x = jitter.x * self.total;
+            let mut piece = self.pieces[self.pieces.len() - 1];
+            jx = 0.5;
+            for p in self.pieces {
+                if x < p.area {
+                    piece = *p;
+                    jx = (x / p.area).clamp(0.0, 1.0 - f32::EPSILON);
+                    break;
+                }
+                x -= p.area;
+            }
+            tri = piece.tri;
+            centroid = Some((piece.u, piece.v));
+        }
+        let g = self.geometry;
+        let (uv0, e1, e2, det, p, ng) = if tri == self.tri {
+            (
+                self.uv0,
+                self.uv_e1,
+                self.uv_e2,
+                self.uv_det,
+                self.p,
+                self.ng,
+            )
+        } else {
+            let uv = &g.uv_lm[tri as usize];
+            let (e1, e2) = (uv[1] - uv[0], uv[2] - uv[0]);
+            (
+                uv[0],
+                e1,
+                e2,
+                e1.perp_dot(e2),
+                g.p_ws[tri as usize],
+                g.ng_ws[tri as usize],
+            )
+        };
+        let mut q = self.corner + Vec2::new(jx, jitter.y);
+        for _ in 0..64 {
+            let w1 = (q - uv0).perp_dot(e2) / det;
+            let w2 = e1.perp_dot(q - uv0) / det;
+            let w = glam::Vec3::new(1.0 - w1 - w2, w1, w2);
+            if w.min_element() >= 0.0 {
+                // A hair inside the edges, as `sample`.
+                let w = w.max(glam::Vec3::splat(1e-4));
+                let w = w / w.element_sum();
+                let (u, v) = (w.y, w.z);
+                return (p[0] * (1.0 - u - v) + p[1] * u + p[2] * v, ng);
+            }
+            // Outside the piece (a texel it covers partly): redraw.
+            q = self.corner + rng.next_vec2();
+        }
+        // A sliver the redraws keep missing: its centroid, kept a hair
+        // inside the edges too (a point on a corner sends rays along the
+        // neighbouring faces).
+        let (u, v) = centroid.unwrap_or_else(|| {
+            let piece = self
+                .pieces
+                .iter()
+                .find(|x| x.tri == tri)
+                .copied()
+                .unwrap_or_default();
+            (piece.u, piece.v)
+        });
+        let w = glam::Vec3::new(1.0 - u - v, u, v).max(glam::Vec3::splat(1e-4));
+        let w = w / w.element_sum();
+        let (u, v) = (w.y, w.z);
+        (p[0] * (1.0 - u - v) + p[1] * u + p[2] * v, ng)
+    }
+
     /// The surface point at `jitter` ∈ [0, 1)² of the texel, and the normal.
     /// Points outside the triangle (texels it covers partly) are clamped
     /// onto it, and every point is kept a hair inside its edges: a ray
