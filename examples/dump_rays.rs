@@ -173,6 +173,18 @@ fn main() -> anyhow::Result<()> {
         n,
         blocked
     );
+    let st = caster.stats();
+    println!(
+        "BVH4: {} nodes ({:.2} children each), {} leaves, {} packets ({:.2} triangles each), depth {}, SAH cost {:.1} box tests + {:.1} packet tests",
+        st.nodes,
+        st.used_slots as f64 / st.nodes.max(1) as f64,
+        st.leaves,
+        st.packets,
+        st.triangles as f64 / st.packets.max(1) as f64,
+        st.depth,
+        st.sah_nodes,
+        st.sah_packets
+    );
     println!(
         "radbake closest-hit: {:.2} M rays/s on 1 thread, {:.2} M rays/s on {threads} threads",
         c1 / 1e6,

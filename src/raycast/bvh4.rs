@@ -2,24 +2,29 @@
 //! `f32x4`: SSE on x86-64, NEON on AArch64).
 //!
 //! Built from obvhs's binary BVH (PLOC, Meister & Bittner 2018, with
-//! reinsertion; at most 4 triangles per leaf) by collapsing it to 4 children
-//! per node, always opening the child of largest surface area (the usual
-//! BVH2 → BVH4 collapse, e.g. Wald, Benthin & Boulos 2008). A node holds its
-//! children's boxes in SoA form so one ray meets all four at once; a leaf is
-//! a [`Tri4`]: four triangles in SoA form, intersected at once (the layout of
-//! Embree's `Triangle4`, Möller–Trumbore as arranged by madmann91's bvh).
-//! Closest-hit traversal is nearest child first; stack entries keep their
-//! entry distance so that entries beyond the closest hit so far are
-//! skipped. Occlusion traversal takes children in node order: any hit ends
-//! it, and skipping the sort made it 17 % faster on the 1M-triangle level.
+//! reinsertion; at most 4 triangles per leaf) by a cost-minimal collapse to
+//! 4 children per node and leaves of up to 8 triangles: dynamic programming
+//! over the binary tree chooses, for every subtree, between a leaf, an inner
+//! node and a split over its parent's slots so as to minimise the
+//! surface-area cost (MacDonald & Booth 1990; the collapse of Ylitie, Karras
+//! & Laine 2017, here 4-wide). A node holds its children's boxes in SoA form
+//! so one ray meets all four at once; a leaf is one or two [`Tri4`]: four
+//! triangles in SoA form, intersected at once (the layout of Embree's
+//! `Triangle4`, Möller–Trumbore as arranged by madmann91's bvh, the division
+//! left to the lanes that hit). Closest-hit traversal is nearest child
+//! first; stack entries keep their entry distance so that entries beyond
+//! the closest hit so far are skipped. Occlusion traversal takes children
+//! in node order: any hit ends it, and sorting costs more than it saves.
+//! Every child a node's test finds is prefetched at once, so the cache
+//! misses of a node's children overlap instead of following each other.
 //!
 //! This replaced obvhs's own CWBVH traversal for CPU rays: on the same
 //! PLOC build, the same rays and the same triangle test it casts more rays
-//! per second (README, "Ray casting against Embree").
+//! per second (README, "Ray casting vs Embree").
 
 use glam::Vec3;
 use std::mem::MaybeUninit;
-use wide::{f32x4, CmpGe, CmpLe};
+use wide::{f32x4, CmpGe, CmpGt, CmpLe};
 
 /// Flag of a child reference that is a leaf.
 const LEAF: u32 = 1 << 31;
@@ -66,6 +71,30 @@ pub(crate) struct Bvh4 {
     root: u32,
     /// Traversal stack entries the deepest path can need (3 per level).
     stack_needed: usize,
+}
+
+/// The shape of a [`Bvh4`]: what its traversal cost depends on.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Bvh4Stats {
+    /// Inner nodes.
+    pub nodes: usize,
+    /// Child slots of inner nodes that hold something (≤ 4 per node).
+    pub used_slots: usize,
+    /// Leaves.
+    pub leaves: usize,
+    /// Triangle packets (≥ one per leaf).
+    pub packets: usize,
+    /// Triangles (used packet lanes).
+    pub triangles: usize,
+    /// Inner-node levels on the deepest path.
+    pub depth: usize,
+    /// Surface-area cost relative to the root box (MacDonald & Booth 1990):
+    /// Σ over inner nodes of area(node)/area(root) (each costs one 4-box
+    /// test) and over packets of area(leaf)/area(root) (one 4-triangle
+    /// test): the expected box tests and packet tests of a random ray.
+    pub sah_nodes: f64,
+    /// The packets' share of that cost.
+    pub sah_packets: f64,
 }
 
 /// A ray prepared for box tests.
@@ -136,10 +165,38 @@ fn bounds(tris: &[[Vec3; 3]], ids: &[u32]) -> (Vec3, Vec3) {
     (lo, hi)
 }
 
+/// Relative cost of intersecting one [`Tri4`] packet, against 1 for one
+/// [`Node4`]'s four box tests (surface-area heuristic of the collapse).
+const PACKET_COST: f32 = 1.0;
+/// Most packets in one leaf.
+const LEAF_PACKETS: u32 = 2;
+
+/// How a BVH2 subtree is best laid out in k child slots of a BVH4 node
+/// (k = 1..=4), with its surface-area cost.
+#[derive(Clone, Copy, Debug)]
+struct Plan {
+    /// `cost[k − 1]`: the cost of the subtree in at most k slots.
+    cost: [f32; 4],
+    /// `split[k − 1]`: slots given to the left child when the subtree is
+    /// split over k slots (0 for k = 1: one leaf or one inner node).
+    split: [u8; 4],
+    /// With one slot: a leaf (else an inner node).
+    leaf: bool,
+}
+
 impl Bvh4 {
     /// Collapses `bvh2` (whose leaves index `bvh2.primitive_indices`) over
     /// triangles `tris` given in BVH order, i.e. `tris[k]` is the triangle of
     /// `primitive_indices[k]`; packet lane ids are those BVH-order indices.
+    ///
+    /// The collapse minimises the surface-area cost (MacDonald & Booth
+    /// 1990) over every way of laying the binary tree into 4-wide nodes and
+    /// leaves of up to [`LEAF_PACKETS`] packets, by dynamic programming
+    /// over the BVH2 bottom-up (as Ylitie, Karras & Laine 2017 do for 8-wide
+    /// nodes): a subtree in k slots is one leaf, one inner node (its own
+    /// box test plus its best split over 4 slots) or a split of its two
+    /// children over j and k − j slots. Siblings' inner nodes are stored
+    /// next to each other, depth first.
     pub(crate) fn new(bvh2: &obvhs::bvh2::Bvh2, tris: &[[Vec3; 3]]) -> Bvh4 {
         let mut b = Bvh4 {
             root: EMPTY,
@@ -148,14 +205,258 @@ impl Bvh4 {
         if tris.is_empty() || bvh2.nodes.is_empty() {
             return b;
         }
-        let root = &bvh2.nodes[0];
-        b.root = if root.prim_count > 0 {
-            b.leaf(root.first_index, root.prim_count, tris)
-        } else {
-            b.inner(bvh2, 0, tris)
-        };
+        let plans = Self::plan(bvh2);
+        let mut todo: Vec<(u32, u32)> = Vec::new();
+        b.root = b.reference(bvh2, &plans, 0, tris, &mut todo);
+        while let Some((index, n)) = todo.pop() {
+            let mut children = Vec::with_capacity(4);
+            Self::slots(bvh2, &plans, n, 4, &mut children);
+            b.fill(bvh2, &plans, index, &children, tris, &mut todo);
+        }
         b.stack_needed = 3 * b.depth() + 1;
         b
+    }
+
+    /// Triangles under BVH2 node `n`, per node.
+    fn counts(bvh2: &obvhs::bvh2::Bvh2, order: &[u32]) -> Vec<u32> {
+        let mut count = vec![0u32; bvh2.nodes.len()];
+        for &n in order.iter().rev() {
+            let node = &bvh2.nodes[n as usize];
+            count[n as usize] = if node.prim_count > 0 {
+                node.prim_count
+            } else {
+                let f = node.first_index as usize;
+                count[f] + count[f + 1]
+            };
+        }
+        count
+    }
+
+    /// The BVH2's nodes, parents before children.
+    fn preorder(bvh2: &obvhs::bvh2::Bvh2) -> Vec<u32> {
+        let mut order = Vec::with_capacity(bvh2.nodes.len());
+        let mut todo = vec![0u32];
+        while let Some(n) = todo.pop() {
+            order.push(n);
+            let node = &bvh2.nodes[n as usize];
+            if node.prim_count == 0 {
+                todo.push(node.first_index);
+                todo.push(node.first_index + 1);
+            }
+        }
+        order
+    }
+
+    /// The cost-minimal layout of every BVH2 subtree ([`Plan`]).
+    fn plan(bvh2: &obvhs::bvh2::Bvh2) -> Vec<Plan> {
+        let order = Self::preorder(bvh2);
+        let count = Self::counts(bvh2, &order);
+        let mut plans = vec![
+            Plan {
+                cost: [f32::INFINITY; 4],
+                split: [0; 4],
+                leaf: true,
+            };
+            bvh2.nodes.len()
+        ];
+        for &n in order.iter().rev() {
+            let node = &bvh2.nodes[n as usize];
+            let area = node.aabb.half_area().max(0.0);
+            let packets = count[n as usize].div_ceil(4);
+            let leaf_cost = if packets <= LEAF_PACKETS {
+                area * PACKET_COST * packets as f32
+            } else {
+                f32::INFINITY
+            };
+            let mut plan = Plan {
+                cost: [leaf_cost; 4],
+                split: [0; 4],
+                leaf: true,
+            };
+            if node.prim_count == 0 {
+                let (l, r) = (
+                    plans[node.first_index as usize],
+                    plans[node.first_index as usize + 1],
+                );
+                // Best split of the two children over k slots.
+                let mut split = [(f32::INFINITY, 0u8); 4];
+                for (k, best) in split.iter_mut().enumerate().skip(1) {
+                    for j in 1..=k {
+                        let c = l.cost[j - 1] + r.cost[k - j];
+                        if c < best.0 {
+                            *best = (c, j as u8);
+                        }
+                    }
+                }
+                let inner = area + split[3].0;
+                if inner < leaf_cost {
+                    plan.cost[0] = inner;
+                    plan.leaf = false;
+                }
+                for (k, &(cost, j)) in split.iter().enumerate().skip(1) {
+                    plan.cost[k] = plan.cost[k - 1];
+                    if cost < plan.cost[k] {
+                        plan.cost[k] = cost;
+                        plan.split[k] = j;
+                    }
+                }
+            }
+            plans[n as usize] = plan;
+        }
+        plans
+    }
+
+    /// The BVH2 nodes that fill `k` slots for subtree `n` (each then a leaf
+    /// or an inner node, as its plan for one slot says).
+    fn slots(bvh2: &obvhs::bvh2::Bvh2, plans: &[Plan], n: u32, k: usize, out: &mut Vec<u32>) {
+        // The split of k slots may be "as for k − 1".
+        let mut k = k;
+        while k > 1 && plans[n as usize].split[k - 1] == 0 {
+            k -= 1;
+        }
+        if k == 1 {
+            out.push(n);
+            return;
+        }
+        let j = plans[n as usize].split[k - 1] as usize;
+        let f = bvh2.nodes[n as usize].first_index;
+        Self::slots(bvh2, plans, f, j, out);
+        Self::slots(bvh2, plans, f + 1, k - j, out);
+    }
+
+    /// The BVH-order triangles under BVH2 node `n`.
+    fn triangles(bvh2: &obvhs::bvh2::Bvh2, n: u32) -> Vec<u32> {
+        let mut ids = Vec::new();
+        let mut todo = vec![n];
+        while let Some(n) = todo.pop() {
+            let node = &bvh2.nodes[n as usize];
+            if node.prim_count > 0 {
+                ids.extend(node.first_index..node.first_index + node.prim_count);
+            } else {
+                todo.push(node.first_index + 1);
+                todo.push(node.first_index);
+            }
+        }
+        ids
+    }
+
+    /// The reference for BVH2 subtree `n` in one slot: its leaf packets, or
+    /// a new inner node queued in `todo` to be filled.
+    fn reference(
+        &mut self,
+        bvh2: &obvhs::bvh2::Bvh2,
+        plans: &[Plan],
+        n: u32,
+        tris: &[[Vec3; 3]],
+        todo: &mut Vec<(u32, u32)>,
+    ) -> u32 {
+        if plans[n as usize].leaf {
+            let ids = Self::triangles(bvh2, n);
+            self.leaf(&ids, tris)
+        } else {
+            let index = self.nodes.len() as u32;
+            self.nodes.push(Node4 {
+                b: [
+                    [f32::INFINITY; 4],
+                    [f32::INFINITY; 4],
+                    [f32::INFINITY; 4],
+                    [f32::NEG_INFINITY; 4],
+                    [f32::NEG_INFINITY; 4],
+                    [f32::NEG_INFINITY; 4],
+                ],
+                child: [EMPTY; 4],
+            });
+            todo.push((index, n));
+            index
+        }
+    }
+
+    /// Fills inner node `index` with the BVH2 subtrees `children`.
+    fn fill(
+        &mut self,
+        bvh2: &obvhs::bvh2::Bvh2,
+        plans: &[Plan],
+        index: u32,
+        children: &[u32],
+        tris: &[[Vec3; 3]],
+        todo: &mut Vec<(u32, u32)>,
+    ) {
+        for (slot, &c) in children.iter().enumerate() {
+            let reference = self.reference(bvh2, plans, c, tris, todo);
+            // Inner boxes from obvhs; a leaf's is its triangles' box, clipped
+            // to obvhs's, which bounds only the pieces of triangles split
+            // before the build (pre_split) that the leaf stands for.
+            let n = &bvh2.nodes[c as usize];
+            let (mut lo, mut hi) = (Vec3::from(n.aabb.min), Vec3::from(n.aabb.max));
+            if reference & LEAF != 0 {
+                let (tlo, thi) = bounds(tris, &Self::triangles(bvh2, c));
+                (lo, hi) = (lo.max(tlo), hi.min(thi));
+            }
+            let node = &mut self.nodes[index as usize];
+            node.child[slot] = reference;
+            for axis in 0..3 {
+                node.b[axis][slot] = lo[axis];
+                node.b[axis + 3][slot] = hi[axis];
+            }
+        }
+    }
+
+    /// The tree's shape and surface-area cost.
+    pub(crate) fn stats(&self) -> Bvh4Stats {
+        let mut s = Bvh4Stats {
+            depth: self.depth(),
+            ..Default::default()
+        };
+        if self.root == EMPTY {
+            return s;
+        }
+        let half_area = |lo: Vec3, hi: Vec3| {
+            let d = (hi - lo).max(Vec3::ZERO);
+            (d.x * d.y + d.y * d.z + d.z * d.x) as f64
+        };
+        // (reference, its box's half area)
+        let mut todo = vec![(self.root, f64::NAN)];
+        let mut root_area = f64::NAN;
+        while let Some((r, area)) = todo.pop() {
+            if r & LEAF != 0 {
+                let start = (r & ((1 << COUNT_SHIFT) - 1)) as usize;
+                let count = ((r & !LEAF) >> COUNT_SHIFT) as usize + 1;
+                s.leaves += 1;
+                s.packets += count;
+                for p in &self.packets[start..start + count] {
+                    s.triangles += p.id.iter().filter(|&&i| i != u32::MAX).count();
+                }
+                s.sah_packets += count as f64 * area;
+                continue;
+            }
+            let node = &self.nodes[r as usize];
+            let mut lo = Vec3::splat(f32::INFINITY);
+            let mut hi = Vec3::splat(f32::NEG_INFINITY);
+            for k in 0..4 {
+                if node.child[k] == EMPTY {
+                    continue;
+                }
+                let clo = Vec3::new(node.b[0][k], node.b[1][k], node.b[2][k]);
+                let chi = Vec3::new(node.b[3][k], node.b[4][k], node.b[5][k]);
+                lo = lo.min(clo);
+                hi = hi.max(chi);
+                s.used_slots += 1;
+                todo.push((node.child[k], half_area(clo, chi)));
+            }
+            let area = if area.is_nan() {
+                root_area = half_area(lo, hi);
+                root_area
+            } else {
+                area
+            };
+            s.nodes += 1;
+            s.sah_nodes += area;
+        }
+        if root_area > 0.0 {
+            s.sah_nodes /= root_area;
+            s.sah_packets /= root_area;
+        }
+        s
     }
 
     /// Inner-node levels on the deepest path.
@@ -174,10 +475,9 @@ impl Bvh4 {
         deepest
     }
 
-    /// Packs the BVH-order triangles `first..first + count` into packets.
-    fn leaf(&mut self, first: u32, count: u32, tris: &[[Vec3; 3]]) -> u32 {
+    /// Packs the BVH-order triangles `ids` into packets.
+    fn leaf(&mut self, ids: &[u32], tris: &[[Vec3; 3]]) -> u32 {
         let start = self.packets.len() as u32;
-        let ids: Vec<u32> = (first..first + count).collect();
         for chunk in ids.chunks(4) {
             let mut p = Tri4 {
                 v0: [[0.0; 4]; 3],
@@ -202,106 +502,81 @@ impl Bvh4 {
             self.packets.push(p);
         }
         let packets = self.packets.len() as u32 - start;
-        // Leaves of obvhs's BVH2 hold ≤ 4 triangles here (one packet); a
-        // bigger one would still fit up to 8 packets.
+        // The plan keeps leaves within LEAF_PACKETS ≤ 8 packets.
         assert!((1..=8).contains(&packets) && start < 1 << COUNT_SHIFT);
         LEAF | (packets - 1) << COUNT_SHIFT | start
     }
 
-    /// Makes the BVH4 node for inner BVH2 node `i`; returns its index.
-    fn inner(&mut self, bvh2: &obvhs::bvh2::Bvh2, i: u32, tris: &[[Vec3; 3]]) -> u32 {
-        let first = bvh2.nodes[i as usize].first_index;
-        let mut open: Vec<u32> = vec![first, first + 1];
-        // Open the inner child of largest surface area until there are 4.
-        while open.len() < 4 {
-            let best = open
-                .iter()
-                .enumerate()
-                .filter(|(_, &c)| bvh2.nodes[c as usize].prim_count == 0)
-                .max_by(|a, b| {
-                    let area = |c: u32| bvh2.nodes[c as usize].aabb.half_area();
-                    area(*a.1).total_cmp(&area(*b.1))
-                })
-                .map(|(k, _)| k);
-            let Some(k) = best else { break };
-            let c = open.swap_remove(k);
-            let f = bvh2.nodes[c as usize].first_index;
-            open.push(f);
-            open.push(f + 1);
-        }
-        let index = self.nodes.len() as u32;
-        self.nodes.push(Node4 {
-            b: [
-                [f32::INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-                [f32::NEG_INFINITY; 4],
-            ],
-            child: [EMPTY; 4],
-        });
-        for (slot, &c) in open.iter().enumerate() {
-            let n = &bvh2.nodes[c as usize];
-            let reference = if n.prim_count > 0 {
-                self.leaf(n.first_index, n.prim_count, tris)
-            } else {
-                self.inner(bvh2, c, tris)
-            };
-            // Leaf boxes from their triangles (exact), inner ones from obvhs.
-            let (lo, hi) = if n.prim_count > 0 {
-                let ids: Vec<u32> = (n.first_index..n.first_index + n.prim_count).collect();
-                bounds(tris, &ids)
-            } else {
-                (Vec3::from(n.aabb.min), Vec3::from(n.aabb.max))
-            };
-            let node = &mut self.nodes[index as usize];
-            node.child[slot] = reference;
-            for axis in 0..3 {
-                node.b[axis][slot] = lo[axis];
-                node.b[axis + 3][slot] = hi[axis];
-            }
-        }
-        index
-    }
-
     /// Visits the leaves that the segment `origin + t·dir`, t ∈ [0, tmax],
-    /// may hit, nearest first: `leaf(packet, tmax)` returns the new `tmax`
-    /// (smaller after a hit) or `None` to stop the traversal.
+    /// may hit, nearest first when `V::ORDERED`: the visitor returns the new
+    /// `tmax` (smaller after a hit) or `None` to stop the traversal.
     #[inline(always)]
-    fn traverse<const ORDERED: bool>(
-        &self,
-        origin: Vec3,
-        dir: Vec3,
-        tmax: f32,
-        leaf: impl FnMut(&Tri4, &Prepared, f32) -> Option<f32>,
-    ) {
+    fn traverse<V: Visitor>(&self, origin: Vec3, dir: Vec3, tmax: f32, visitor: &mut V) {
         if self.root == EMPTY {
             return;
         }
         if self.stack_needed <= STACK {
             // Not zero-filled: every entry is written before it is read.
             let mut stack = [const { MaybeUninit::<(u32, f32)>::uninit() }; STACK];
-            self.traverse_with::<ORDERED>(&mut stack, origin, dir, tmax, leaf);
+            self.traverse_with(&mut stack, origin, dir, tmax, visitor);
         } else {
             let mut stack = vec![MaybeUninit::uninit(); self.stack_needed];
-            self.traverse_with::<ORDERED>(&mut stack, origin, dir, tmax, leaf);
+            self.traverse_with(&mut stack, origin, dir, tmax, visitor);
         }
     }
 
+    /// Asks for the cache lines of the node or leaf packets `r` refers to,
+    /// so that the loads of the children a node's test found overlap.
     #[inline(always)]
-    fn traverse_with<const ORDERED: bool>(
+    fn prefetch(&self, r: u32) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let (ptr, bytes) = if r & LEAF == 0 {
+                (
+                    self.nodes.as_ptr().wrapping_add(r as usize) as *const i8,
+                    std::mem::size_of::<Node4>(),
+                )
+            } else {
+                let start = (r & ((1 << COUNT_SHIFT) - 1)) as usize;
+                (
+                    self.packets.as_ptr().wrapping_add(start) as *const i8,
+                    std::mem::size_of::<Tri4>(),
+                )
+            };
+            for line in (0..bytes).step_by(64) {
+                // SAFETY: prefetching is a hint; it never faults, whatever
+                // the address.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(ptr.wrapping_add(line)) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = r;
+    }
+
+    #[inline(always)]
+    fn traverse_with<V: Visitor>(
         &self,
         stack: &mut [MaybeUninit<(u32, f32)>],
         origin: Vec3,
         dir: Vec3,
         mut tmax: f32,
-        mut leaf: impl FnMut(&Tri4, &Prepared, f32) -> Option<f32>,
+        visitor: &mut V,
     ) {
         let ray = Prepared::new(origin, dir);
         let mut top = 1usize;
         stack[0] = MaybeUninit::new((self.root, 0.0));
-        while top > 0 {
+        // Pushes stay within `stack_needed`: at most 3 per level.
+        macro_rules! push {
+            ($entry:expr) => {{
+                stack[top] = MaybeUninit::new($entry);
+                top += 1;
+            }};
+        }
+        'pop: loop {
+            if top == 0 {
+                return;
+            }
             top -= 1;
             // SAFETY: entries below `top` were all written (pushes write
             // `stack[top]` before incrementing it).
@@ -309,43 +584,71 @@ impl Bvh4 {
             if t_entry > tmax {
                 continue;
             }
-            // Descend through inner nodes, nearest child first.
+            // Descend through inner nodes (nearest child first when ordered),
+            // pushing the other children that the ray meets.
             while r & LEAF == 0 {
                 let node = &self.nodes[r as usize];
                 let (near, mut mask) = ray.boxes(node, tmax);
                 if mask == 0 {
-                    r = EMPTY;
-                    break;
+                    continue 'pop;
                 }
-                // Hit children sorted by entry distance (≤ 4: insertion sort).
-                let mut hits = [(0u32, 0.0f32); 4];
-                let mut n = 0;
+                let a = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                self.prefetch(node.child[a]);
+                if mask == 0 {
+                    // One child (the common case): no stack traffic.
+                    r = node.child[a];
+                    continue;
+                }
+                let b = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                self.prefetch(node.child[b]);
+                if !V::ORDERED {
+                    push!((node.child[a], 0.0));
+                    while mask != 0 {
+                        let k = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        self.prefetch(node.child[k]);
+                        push!((node.child[k], 0.0));
+                    }
+                    r = node.child[b];
+                    continue;
+                }
+                let (a, b) = if near[a] <= near[b] { (a, b) } else { (b, a) };
+                if mask == 0 {
+                    push!((node.child[b], near[b]));
+                    r = node.child[a];
+                    continue;
+                }
+                // Three or four children: insertion sort, far to near.
+                let mut hits = [
+                    (node.child[b], near[b]),
+                    (node.child[a], near[a]),
+                    (0, 0.0),
+                    (0, 0.0),
+                ];
+                let mut n = 2;
                 while mask != 0 {
                     let k = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
+                    self.prefetch(node.child[k]);
                     let mut j = n;
-                    while ORDERED && j > 0 && hits[j - 1].1 < near[k] {
+                    while j > 0 && hits[j - 1].1 < near[k] {
                         hits[j] = hits[j - 1];
                         j -= 1;
                     }
                     hits[j] = (node.child[k], near[k]);
                     n += 1;
                 }
-                // hits is sorted far → near: push all but the nearest (at
-                // most 3 per level, within `stack_needed`).
                 for h in &hits[..n - 1] {
-                    stack[top] = MaybeUninit::new(*h);
-                    top += 1;
+                    push!(*h);
                 }
                 r = hits[n - 1].0;
-            }
-            if r == EMPTY {
-                continue;
             }
             let start = (r & ((1 << COUNT_SHIFT) - 1)) as usize;
             let count = ((r & !LEAF) >> COUNT_SHIFT) as usize + 1;
             for p in &self.packets[start..start + count] {
-                match leaf(p, &ray, tmax) {
+                match visitor.visit(p, &ray, tmax) {
                     Some(t) => tmax = t,
                     None => return,
                 }
@@ -354,9 +657,13 @@ impl Bvh4 {
     }
 
     /// The hits of the ray with the four triangles of `p` within [0, tmax]:
-    /// a lane mask and (t, u, v) per lane.
+    /// a lane mask, and what [`Self::hit_params`] turns into (t, u, v).
+    ///
+    /// Möller–Trumbore with the division left to the hits (as Embree's
+    /// `MoellerTrumboreIntersector1` does): u·det, v·det and t·det, their
+    /// signs flipped by det's, are compared with |det| and |det|·tmax.
     #[inline(always)]
-    fn intersect(p: &Tri4, ray: &Prepared, tmax: f32) -> (i32, [f32; 4], [f32; 4], [f32; 4]) {
+    fn intersect(p: &Tri4, ray: &Prepared, tmax: f32) -> (i32, [f32x4; 4]) {
         let v = |a: &[[f32; 4]; 3]| a.map(f32x4::new);
         let (v0, e1, e2, n) = (v(&p.v0), v(&p.e1), v(&p.e2), v(&p.n));
         let o = &ray.origin;
@@ -370,21 +677,32 @@ impl Bvh4 {
         ];
         let dot = |a: &[f32x4; 3], b: &[f32x4; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
         let det = dot(&n, d);
-        let inv = f32x4::splat(1.0) / det;
-        let u = dot(&r, &e2) * inv;
-        let w = dot(&r, &e1) * inv;
-        let t = dot(&n, &c) * inv;
+        let u = dot(&r, &e2);
+        let w = dot(&r, &e1);
+        let t = dot(&n, &c);
+        let sign = det & f32x4::splat(-0.0);
+        let abs = det ^ sign;
+        let (us, ws, ts) = (u ^ sign, w ^ sign, t ^ sign);
         let zero = f32x4::splat(0.0);
-        // det = 0 gives inf or NaN in u, w, t: NaN fails every comparison,
-        // and an infinite t fails t ≤ tmax (tmax is finite or the test
-        // below is t < ∞), so such lanes never hit.
-        let ok = u.cmp_ge(zero)
-            & w.cmp_ge(zero)
-            & (u + w).cmp_le(f32x4::splat(1.0))
-            & t.cmp_ge(zero)
-            & t.cmp_le(f32x4::splat(tmax))
-            & det.cmp_ne_zero();
-        (ok.move_mask(), t.to_array(), u.to_array(), w.to_array())
+        // det = 0 fails abs > 0; a NaN fails every comparison.
+        let ok = us.cmp_ge(zero)
+            & ws.cmp_ge(zero)
+            & (us + ws).cmp_le(abs)
+            & ts.cmp_ge(zero)
+            & ts.cmp_le(abs * f32x4::splat(tmax))
+            & abs.cmp_gt(zero);
+        (ok.move_mask(), [t, u, w, det])
+    }
+
+    /// (t, u, v) per lane of a packet's hits from [`Self::intersect`].
+    #[inline(always)]
+    fn hit_params([t, u, w, det]: [f32x4; 4]) -> ([f32; 4], [f32; 4], [f32; 4]) {
+        let inv = f32x4::splat(1.0) / det;
+        (
+            (t * inv).to_array(),
+            (u * inv).to_array(),
+            (w * inv).to_array(),
+        )
     }
 
     /// The closest hit along `origin + t·dir`, t ∈ [0, tmax], among the
@@ -397,21 +715,9 @@ impl Bvh4 {
         tmax: f32,
         accept: impl Fn(u32, f32, f32) -> bool,
     ) -> Option<LaneHit> {
-        let mut best: Option<LaneHit> = None;
-        self.traverse::<true>(origin, dir, tmax, |p, ray, tmax| {
-            let (mut mask, t, u, v) = Self::intersect(p, ray, tmax);
-            let mut limit = tmax;
-            while mask != 0 {
-                let k = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if t[k] < limit && accept(p.id[k], u[k], v[k]) {
-                    limit = t[k];
-                    best = Some((p.id[k], t[k], u[k], v[k]));
-                }
-            }
-            Some(limit)
-        });
-        best
+        let mut v = Closest { accept, best: None };
+        self.traverse(origin, dir, tmax, &mut v);
+        v.best
     }
 
     /// True when no lane `accept` keeps lies along `origin + t·dir`,
@@ -424,32 +730,237 @@ impl Bvh4 {
         tmax: f32,
         accept: impl Fn(u32, f32, f32) -> bool,
     ) -> bool {
-        let mut clear = true;
-        self.traverse::<false>(origin, dir, tmax, |p, ray, tmax| {
-            let (mut mask, _, u, v) = Self::intersect(p, ray, tmax);
-            while mask != 0 {
-                let k = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                if accept(p.id[k], u[k], v[k]) {
-                    clear = false;
-                    return None;
-                }
-            }
-            Some(tmax)
-        });
-        clear
+        let mut v = AnyHit {
+            accept,
+            clear: true,
+        };
+        self.traverse(origin, dir, tmax, &mut v);
+        v.clear
     }
 }
 
-/// `det ≠ 0` per lane.
-trait NonZero {
-    fn cmp_ne_zero(self) -> Self;
+/// What a traversal does at a leaf packet (a trait rather than a closure,
+/// so that the packet test is always inlined into the traversal loop).
+trait Visitor {
+    /// Children visited nearest first (closest hit), or in slot order
+    /// (any hit: sorting costs more than it saves).
+    const ORDERED: bool;
+    /// Tests packet `p`: the new `tmax`, or `None` to stop.
+    fn visit(&mut self, p: &Tri4, ray: &Prepared, tmax: f32) -> Option<f32>;
 }
 
-impl NonZero for f32x4 {
+/// The closest-hit visitor.
+struct Closest<F> {
+    accept: F,
+    best: Option<LaneHit>,
+}
+
+impl<F: Fn(u32, f32, f32) -> bool> Visitor for Closest<F> {
+    const ORDERED: bool = true;
     #[inline(always)]
-    fn cmp_ne_zero(self) -> f32x4 {
-        use wide::CmpNe;
-        self.cmp_ne(f32x4::splat(0.0))
+    fn visit(&mut self, p: &Tri4, ray: &Prepared, tmax: f32) -> Option<f32> {
+        let (mut mask, raw) = Bvh4::intersect(p, ray, tmax);
+        if mask == 0 {
+            return Some(tmax);
+        }
+        let (t, u, v) = Bvh4::hit_params(raw);
+        let mut limit = tmax;
+        while mask != 0 {
+            let k = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if t[k] < limit && (self.accept)(p.id[k], u[k], v[k]) {
+                limit = t[k];
+                self.best = Some((p.id[k], t[k], u[k], v[k]));
+            }
+        }
+        Some(limit)
+    }
+}
+
+/// The occlusion (any-hit) visitor.
+struct AnyHit<F> {
+    accept: F,
+    clear: bool,
+}
+
+impl<F: Fn(u32, f32, f32) -> bool> Visitor for AnyHit<F> {
+    const ORDERED: bool = false;
+    #[inline(always)]
+    fn visit(&mut self, p: &Tri4, ray: &Prepared, tmax: f32) -> Option<f32> {
+        let (mut mask, raw) = Bvh4::intersect(p, ray, tmax);
+        if mask == 0 {
+            return Some(tmax);
+        }
+        let (_, u, v) = Bvh4::hit_params(raw);
+        while mask != 0 {
+            let k = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if (self.accept)(p.id[k], u[k], v[k]) {
+                self.clear = false;
+                return None;
+            }
+        }
+        Some(tmax)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Stream;
+
+    /// A BVH4 over `n` random triangles, as `RayCaster` builds it.
+    fn random_bvh(n: usize, seed: u64) -> (Bvh4, Vec<[Vec3; 3]>) {
+        let mut s = Stream::new(seed, 0, 0);
+        let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
+        let tris: Vec<[Vec3; 3]> = (0..n)
+            .map(|_| {
+                let c = v() * 20.0;
+                [c + v() - 0.5, c + v() - 0.5, c + v() - 0.5]
+            })
+            .collect();
+        let obvhs_tris: Vec<obvhs::triangle::Triangle> = tris
+            .iter()
+            .map(|p| obvhs::triangle::Triangle {
+                v0: p[0].into(),
+                v1: p[1].into(),
+                v2: p[2].into(),
+            })
+            .collect();
+        let params = obvhs::BvhBuildParams {
+            max_prims_per_leaf: 4,
+            ..obvhs::BvhBuildParams::medium_build()
+        };
+        let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
+            &obvhs_tris,
+            params,
+            &mut std::time::Duration::default(),
+        );
+        let ordered: Vec<[Vec3; 3]> = bvh2
+            .primitive_indices
+            .iter()
+            .map(|&g| tris[g as usize])
+            .collect();
+        (Bvh4::new(&bvh2, &ordered), ordered)
+    }
+
+    /// Every triangle sits in exactly one lane, every box holds what is
+    /// under it, leaves keep to LEAF_PACKETS, and the tree's surface-area
+    /// cost is the one the dynamic programme minimised.
+    #[test]
+    fn collapse_keeps_every_triangle_once_inside_its_boxes() {
+        let (bvh, tris) = random_bvh(5000, 11);
+        let mut seen = vec![0u32; tris.len()];
+        // (reference, box it must lie in)
+        let mut todo = vec![(
+            bvh.root,
+            Vec3::splat(f32::NEG_INFINITY),
+            Vec3::splat(f32::INFINITY),
+        )];
+        while let Some((r, lo, hi)) = todo.pop() {
+            if r & LEAF != 0 {
+                let start = (r & ((1 << COUNT_SHIFT) - 1)) as usize;
+                let count = ((r & !LEAF) >> COUNT_SHIFT) as usize + 1;
+                assert!(count as u32 <= LEAF_PACKETS);
+                for p in &bvh.packets[start..start + count] {
+                    for &id in p.id.iter().filter(|&&i| i != u32::MAX) {
+                        seen[id as usize] += 1;
+                        for c in tris[id as usize] {
+                            assert!(
+                                c.cmpge(lo).all() && c.cmple(hi).all(),
+                                "{c} outside {lo}..{hi}"
+                            );
+                        }
+                    }
+                }
+                continue;
+            }
+            let node = &bvh.nodes[r as usize];
+            for k in 0..4 {
+                if node.child[k] == EMPTY {
+                    continue;
+                }
+                let clo = Vec3::new(node.b[0][k], node.b[1][k], node.b[2][k]);
+                let chi = Vec3::new(node.b[3][k], node.b[4][k], node.b[5][k]);
+                // Inner boxes nest (obvhs's boxes are exact unions).
+                assert!(clo.cmpge(lo).all() && chi.cmple(hi).all());
+                todo.push((node.child[k], clo, chi));
+            }
+        }
+        assert!(
+            seen.iter().all(|&c| c == 1),
+            "a triangle is missing or repeated"
+        );
+        let st = bvh.stats();
+        assert_eq!(st.triangles, tris.len());
+        assert!(st.used_slots as f64 / st.nodes as f64 > 3.5, "{st:?}");
+    }
+
+    /// The collapse's cost is no worse than the greedy collapse that opens
+    /// the largest child until a node has four, on the same binary tree.
+    #[test]
+    fn collapse_costs_no_more_than_the_greedy_one() {
+        let (bvh, _) = random_bvh(20_000, 5);
+        let st = bvh.stats();
+        let dp = st.sah_nodes + PACKET_COST as f64 * st.sah_packets;
+        // Greedy, on the same cost terms and the same BVH2.
+        let greedy = greedy_cost(20_000, 5);
+        eprintln!("surface-area cost: dynamic programme {dp:.3}, greedy {greedy:.3}");
+        assert!(dp <= greedy * 1.000_1, "dp {dp} greedy {greedy}");
+    }
+
+    /// Surface-area cost (relative to the root's box) of the greedy BVH2 →
+    /// BVH4 collapse over the tree `random_bvh` builds: inner nodes open
+    /// their largest inner child until they have four; BVH2 leaves are
+    /// leaves.
+    fn greedy_cost(n: usize, seed: u64) -> f64 {
+        let mut s = Stream::new(seed, 0, 0);
+        let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
+        let tris: Vec<obvhs::triangle::Triangle> = (0..n)
+            .map(|_| {
+                let c = v() * 20.0;
+                obvhs::triangle::Triangle {
+                    v0: (c + v() - 0.5).into(),
+                    v1: (c + v() - 0.5).into(),
+                    v2: (c + v() - 0.5).into(),
+                }
+            })
+            .collect();
+        let params = obvhs::BvhBuildParams {
+            max_prims_per_leaf: 4,
+            ..obvhs::BvhBuildParams::medium_build()
+        };
+        let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
+            &tris,
+            params,
+            &mut std::time::Duration::default(),
+        );
+        let area = |c: u32| bvh2.nodes[c as usize].aabb.half_area() as f64;
+        let root = area(0);
+        let mut cost = 0.0;
+        let mut todo = vec![0u32];
+        while let Some(i) = todo.pop() {
+            let node = &bvh2.nodes[i as usize];
+            if node.prim_count > 0 {
+                cost += PACKET_COST as f64 * node.prim_count.div_ceil(4) as f64 * area(i);
+                continue;
+            }
+            cost += area(i);
+            let mut open = vec![node.first_index, node.first_index + 1];
+            while open.len() < 4 {
+                let best = open
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, &c)| bvh2.nodes[c as usize].prim_count == 0)
+                    .max_by(|a, b| area(*a.1).total_cmp(&area(*b.1)))
+                    .map(|(k, _)| k);
+                let Some(k) = best else { break };
+                let c = open.swap_remove(k);
+                let f = bvh2.nodes[c as usize].first_index;
+                open.extend([f, f + 1]);
+            }
+            todo.extend(open);
+        }
+        cost / root
     }
 }

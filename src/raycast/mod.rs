@@ -5,6 +5,8 @@
 
 mod bvh4;
 
+pub use bvh4::Bvh4Stats;
+
 use crate::geometry::Geometry;
 use crate::scene::{Alpha, Scene, Texture, TextureRef};
 use bvh4::Bvh4;
@@ -84,6 +86,10 @@ pub(crate) fn obvhs_triangles(geometry: &Geometry) -> Vec<Triangle> {
         .collect()
 }
 
+/// Most triangles in a leaf of obvhs's binary BVH before the BVH4's
+/// cost-minimal collapse, which merges subtrees into leaves itself.
+const BVH2_LEAF: u32 = 4;
+
 /// The scene's BVH and triangles, in BVH order.
 pub struct RayCaster {
     bvh: Bvh4,
@@ -102,11 +108,12 @@ impl RayCaster {
     }
 
     /// Builds the BVH over `geometry` with obvhs build settings `params`
-    /// (for the benchmarks, which compare presets); leaves are capped at
-    /// 4 triangles (one SIMD packet).
+    /// (for the benchmarks, which compare presets); obvhs's leaves are
+    /// capped at [`BVH2_LEAF`] triangles, and the BVH4's collapse decides
+    /// its own leaves.
     pub fn with_params(scene: &Scene, geometry: &Geometry, params: BvhBuildParams) -> RayCaster {
         let params = BvhBuildParams {
-            max_prims_per_leaf: params.max_prims_per_leaf.min(4),
+            max_prims_per_leaf: params.max_prims_per_leaf.min(BVH2_LEAF),
             ..params
         };
         let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
@@ -169,6 +176,11 @@ impl RayCaster {
     pub fn unoccluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         self.bvh
             .unoccluded(origin, dir, tmax, |k, u, v| self.keep(k, u, v))
+    }
+
+    /// The BVH's shape and surface-area cost.
+    pub fn stats(&self) -> Bvh4Stats {
+        self.bvh.stats()
     }
 
     /// Number of triangles.
