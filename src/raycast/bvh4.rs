@@ -55,9 +55,15 @@ pub(crate) struct Tri4 {
     e1: [[f32; 4]; 3],
     e2: [[f32; 4]; 3],
     n: [[f32; 4]; 3],
-    /// Triangle index in the caller's (BVH) order per lane; `u32::MAX` unused.
+    /// Triangle index in the caller's (BVH) order per lane, with [`MASKED`]
+    /// set for alpha-masked triangles; `u32::MAX` unused.
     pub(crate) id: [u32; 4],
 }
+
+/// Flag of a lane id whose triangle is alpha-masked: only those lanes'
+/// hits are handed to the caller's cut-out test, so opaque hits cost no
+/// look-up outside the packet.
+const MASKED: u32 = 1 << 31;
 
 /// A hit inside a packet: (lane's triangle id, t, u, v).
 pub(crate) type LaneHit = (u32, f32, f32, f32);
@@ -171,6 +177,9 @@ const PACKET_COST: f32 = 1.0;
 /// Most packets in one leaf.
 const LEAF_PACKETS: u32 = 2;
 
+/// The triangles being built over, in BVH order, and which are masked.
+type Tris<'a> = (&'a [[Vec3; 3]], &'a [bool]);
+
 /// How a BVH2 subtree is best laid out in k child slots of a BVH4 node
 /// (k = 1..=4), with its surface-area cost.
 #[derive(Clone, Copy, Debug)]
@@ -188,6 +197,8 @@ impl Bvh4 {
     /// Collapses `bvh2` (whose leaves index `bvh2.primitive_indices`) over
     /// triangles `tris` given in BVH order, i.e. `tris[k]` is the triangle of
     /// `primitive_indices[k]`; packet lane ids are those BVH-order indices.
+    /// `masked[k]`: triangle k is alpha-masked (its hits go through the
+    /// caller's `accept`; other hits are taken as they are).
     ///
     /// The collapse minimises the surface-area cost (MacDonald & Booth
     /// 1990) over every way of laying the binary tree into 4-wide nodes and
@@ -197,7 +208,8 @@ impl Bvh4 {
     /// box test plus its best split over 4 slots) or a split of its two
     /// children over j and k − j slots. Siblings' inner nodes are stored
     /// next to each other, depth first.
-    pub(crate) fn new(bvh2: &obvhs::bvh2::Bvh2, tris: &[[Vec3; 3]]) -> Bvh4 {
+    pub(crate) fn new(bvh2: &obvhs::bvh2::Bvh2, tris: &[[Vec3; 3]], masked: &[bool]) -> Bvh4 {
+        assert!(tris.len() < MASKED as usize && masked.len() == tris.len());
         let mut b = Bvh4 {
             root: EMPTY,
             ..Default::default()
@@ -207,11 +219,11 @@ impl Bvh4 {
         }
         let plans = Self::plan(bvh2);
         let mut todo: Vec<(u32, u32)> = Vec::new();
-        b.root = b.reference(bvh2, &plans, 0, tris, &mut todo);
+        b.root = b.reference(bvh2, &plans, 0, (tris, masked), &mut todo);
         while let Some((index, n)) = todo.pop() {
             let mut children = Vec::with_capacity(4);
             Self::slots(bvh2, &plans, n, 4, &mut children);
-            b.fill(bvh2, &plans, index, &children, tris, &mut todo);
+            b.fill(bvh2, &plans, index, &children, (tris, masked), &mut todo);
         }
         b.stack_needed = 3 * b.depth() + 1;
         b
@@ -347,7 +359,7 @@ impl Bvh4 {
         bvh2: &obvhs::bvh2::Bvh2,
         plans: &[Plan],
         n: u32,
-        tris: &[[Vec3; 3]],
+        tris: Tris,
         todo: &mut Vec<(u32, u32)>,
     ) -> u32 {
         if plans[n as usize].leaf {
@@ -378,7 +390,7 @@ impl Bvh4 {
         plans: &[Plan],
         index: u32,
         children: &[u32],
-        tris: &[[Vec3; 3]],
+        tris: Tris,
         todo: &mut Vec<(u32, u32)>,
     ) {
         for (slot, &c) in children.iter().enumerate() {
@@ -389,7 +401,7 @@ impl Bvh4 {
             let n = &bvh2.nodes[c as usize];
             let (mut lo, mut hi) = (Vec3::from(n.aabb.min), Vec3::from(n.aabb.max));
             if reference & LEAF != 0 {
-                let (tlo, thi) = bounds(tris, &Self::triangles(bvh2, c));
+                let (tlo, thi) = bounds(tris.0, &Self::triangles(bvh2, c));
                 (lo, hi) = (lo.max(tlo), hi.min(thi));
             }
             let node = &mut self.nodes[index as usize];
@@ -476,7 +488,7 @@ impl Bvh4 {
     }
 
     /// Packs the BVH-order triangles `ids` into packets.
-    fn leaf(&mut self, ids: &[u32], tris: &[[Vec3; 3]]) -> u32 {
+    fn leaf(&mut self, ids: &[u32], (tris, masked): Tris) -> u32 {
         let start = self.packets.len() as u32;
         for chunk in ids.chunks(4) {
             let mut p = Tri4 {
@@ -497,7 +509,7 @@ impl Bvh4 {
                     p.e2[axis][lane] = e2[axis];
                     p.n[axis][lane] = n[axis];
                 }
-                p.id[lane] = k;
+                p.id[lane] = if masked[k as usize] { k | MASKED } else { k };
             }
             self.packets.push(p);
         }
@@ -768,9 +780,10 @@ impl<F: Fn(u32, f32, f32) -> bool> Visitor for Closest<F> {
         while mask != 0 {
             let k = mask.trailing_zeros() as usize;
             mask &= mask - 1;
-            if t[k] < limit && (self.accept)(p.id[k], u[k], v[k]) {
+            let id = p.id[k] & !MASKED;
+            if t[k] < limit && (p.id[k] & MASKED == 0 || (self.accept)(id, u[k], v[k])) {
                 limit = t[k];
-                self.best = Some((p.id[k], t[k], u[k], v[k]));
+                self.best = Some((id, t[k], u[k], v[k]));
             }
         }
         Some(limit)
@@ -791,11 +804,17 @@ impl<F: Fn(u32, f32, f32) -> bool> Visitor for AnyHit<F> {
         if mask == 0 {
             return Some(tmax);
         }
+        // An opaque lane's hit ends the ray: no barycentrics needed.
+        let opaque = (0..4).any(|k| mask & 1 << k != 0 && p.id[k] & MASKED == 0);
+        if opaque {
+            self.clear = false;
+            return None;
+        }
         let (_, u, v) = Bvh4::hit_params(raw);
         while mask != 0 {
             let k = mask.trailing_zeros() as usize;
             mask &= mask - 1;
-            if (self.accept)(p.id[k], u[k], v[k]) {
+            if (self.accept)(p.id[k] & !MASKED, u[k], v[k]) {
                 self.clear = false;
                 return None;
             }
@@ -841,7 +860,8 @@ mod tests {
             .iter()
             .map(|&g| tris[g as usize])
             .collect();
-        (Bvh4::new(&bvh2, &ordered), ordered)
+        let masked = vec![false; ordered.len()];
+        (Bvh4::new(&bvh2, &ordered, &masked), ordered)
     }
 
     /// Every triangle sits in exactly one lane, every box holds what is
@@ -864,6 +884,7 @@ mod tests {
                 assert!(count as u32 <= LEAF_PACKETS);
                 for p in &bvh.packets[start..start + count] {
                     for &id in p.id.iter().filter(|&&i| i != u32::MAX) {
+                        assert_eq!(id & MASKED, 0);
                         seen[id as usize] += 1;
                         for c in tris[id as usize] {
                             assert!(

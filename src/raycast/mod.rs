@@ -124,8 +124,7 @@ impl RayCaster {
         let cutouts = Cutouts::new(scene);
         let ids: Vec<u32> = bvh2.primitive_indices.clone();
         let ordered: Vec<[Vec3; 3]> = ids.iter().map(|&g| geometry.p_ws[g as usize]).collect();
-        let bvh = Bvh4::new(&bvh2, &ordered);
-        let masked_material = ids
+        let masked_material: Vec<u32> = ids
             .iter()
             .map(|&g| {
                 let m = geometry.material[g as usize];
@@ -136,6 +135,8 @@ impl RayCaster {
                 }
             })
             .collect();
+        let masked: Vec<bool> = masked_material.iter().map(|&m| m != u32::MAX).collect();
+        let bvh = Bvh4::new(&bvh2, &ordered, &masked);
         let uv0 = ids.iter().map(|&g| geometry.uv0[g as usize]).collect();
         RayCaster {
             bvh,
@@ -147,7 +148,7 @@ impl RayCaster {
     }
 
     /// False where BVH-order triangle `k` is cut out (alpha mask) at
-    /// barycentrics (u, v).
+    /// barycentrics (u, v); the BVH asks only for masked triangles.
     #[inline(always)]
     fn keep(&self, k: u32, u: f32, v: f32) -> bool {
         let m = self.masked_material[k as usize];
@@ -229,6 +230,51 @@ mod tests {
         let mut g = random_geometry(triangles.len(), 0);
         g.p_ws.copy_from_slice(triangles);
         RayCaster::new(&scene, &g)
+    }
+
+    /// Alpha-masked triangles cut out by their alpha are passed through, by
+    /// closest-hit and occlusion rays alike, while opaque and kept masked
+    /// ones in the same packet still hit (the packet's masked-lane flags).
+    #[test]
+    fn cut_out_triangles_let_rays_through() {
+        use crate::scene::{Alpha, Material};
+        let masked = |alpha| Material {
+            alpha: Alpha::Mask { cutoff: 0.5 },
+            alpha_factor: alpha,
+            ..Material::fallback()
+        };
+        let scene = Scene {
+            materials: vec![Material::fallback(), masked(0.2), masked(0.9)],
+            ..Default::default()
+        };
+        // Three parallel squares (two triangles each) across the +z axis at
+        // z = 1 (cut out), 2 (masked but kept) and 3 (opaque).
+        let mut g = random_geometry(6, 0);
+        for (k, (z, m)) in [(1.0, 1), (2.0, 2), (3.0, 0)].into_iter().enumerate() {
+            let c = |x: f32, y: f32| Vec3::new(x, y, z);
+            g.p_ws[2 * k] = [c(-1.0, -1.0), c(1.0, -1.0), c(1.0, 1.0)];
+            g.p_ws[2 * k + 1] = [c(-1.0, -1.0), c(1.0, 1.0), c(-1.0, 1.0)];
+            g.material[2 * k] = m;
+            g.material[2 * k + 1] = m;
+        }
+        let rc = RayCaster::new(&scene, &g);
+        let o = Vec3::new(0.3, -0.2, 0.0);
+        let h = rc.closest_hit(o, Vec3::Z, f32::INFINITY).expect("a hit");
+        assert!((h.t - 2.0).abs() < 1e-5, "t = {}", h.t);
+        assert_eq!(g.material[h.tri as usize], 2);
+        // Only the cut-out square lies within 1.5.
+        assert!(rc.unoccluded(o, Vec3::Z, 1.5));
+        assert!(!rc.unoccluded(o, Vec3::Z, 2.5));
+        // With the kept square cut out too, the opaque one is next.
+        let scene = Scene {
+            materials: vec![Material::fallback(), masked(0.2), masked(0.3)],
+            ..Default::default()
+        };
+        let rc = RayCaster::new(&scene, &g);
+        let h = rc.closest_hit(o, Vec3::Z, f32::INFINITY).expect("a hit");
+        assert!((h.t - 3.0).abs() < 1e-5, "t = {}", h.t);
+        assert!(rc.unoccluded(o, Vec3::Z, 2.5));
+        assert!(!rc.unoccluded(o, Vec3::Z, 3.5));
     }
 
     /// A direction with a −0.0 component still finds its hit (regression:
