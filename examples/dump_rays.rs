@@ -1,5 +1,5 @@
 //! Writes a scene's world triangles and a seeded set of incoherent rays to a
-//! binary file, with radbake's answers (its BVH4 over an obvhs build), and measures its
+//! binary file, with radbake's answers (its BVH4/BVH8 over an obvhs build), and measures its
 //! closest-hit and occlusion rays/s on them (one thread and all threads).
 //! `tests/benches/embree_compare.py` casts the same rays with Embree.
 //!
@@ -45,6 +45,9 @@ struct Args {
     /// obvhs build preset: fastest, very-fast, fast, medium (radbake's), slow or very-slow.
     #[arg(long, default_value = "medium")]
     bvh: String,
+    /// BVH width: auto (8 with AVX2, else 4), 4 or 8.
+    #[arg(long, default_value = "auto")]
+    width: String,
     /// Output file.
     #[arg(long, short, default_value = "rays.bin")]
     out: PathBuf,
@@ -79,7 +82,14 @@ fn main() -> anyhow::Result<()> {
         "very-slow" => P::very_slow_build(),
         other => anyhow::bail!("unknown --bvh preset `{other}`"),
     };
-    let caster = RayCaster::with_params(&scene, &geometry, params);
+    use radbake::raycast::BvhWidth;
+    let width = match args.width.as_str() {
+        "auto" => BvhWidth::Auto,
+        "4" => BvhWidth::Four,
+        "8" => BvhWidth::Eight,
+        other => anyhow::bail!("unknown --width `{other}` (auto, 4 or 8)"),
+    };
+    let caster = RayCaster::with_width(&scene, &geometry, params, width);
     let build = t.elapsed().as_secs_f64();
     let closest = common::surface_rays(&geometry, args.rays, common::SEED);
     let shadow = common::shadow_rays(&geometry, args.rays, common::SEED);
@@ -175,7 +185,8 @@ fn main() -> anyhow::Result<()> {
     );
     let st = caster.stats();
     println!(
-        "BVH4: {} nodes ({:.2} children each), {} leaves, {} packets ({:.2} triangles each), depth {}, SAH cost {:.1} box tests + {:.1} packet tests",
+        "BVH{}: {} nodes ({:.2} children each), {} leaves, {} packets ({:.2} triangles each), depth {}, SAH cost {:.1} box tests + {:.1} packet tests",
+        caster.width(),
         st.nodes,
         st.used_slots as f64 / st.nodes.max(1) as f64,
         st.leaves,

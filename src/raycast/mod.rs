@@ -1,15 +1,16 @@
 //! Ray casting over every world triangle: obvhs builds a binary BVH (PLOC,
-//! Meister & Bittner 2018), collapsed into our 4-wide SIMD BVH ([`bvh4`]).
+//! Meister & Bittner 2018), collapsed into our 4- or 8-wide SIMD BVH
+//! ([`bvh`]; 8 wide with AVX2).
 //! Closest-hit and occlusion queries; alpha-masked materials are cut out
 //! during traversal (any-hit test on the base colour alpha).
 
-mod bvh4;
+mod bvh;
 
-pub use bvh4::Bvh4Stats;
+pub use bvh::BvhStats;
 
 use crate::geometry::Geometry;
 use crate::scene::{Alpha, Scene, Texture, TextureRef};
-use bvh4::Bvh4;
+use bvh::{Bvh4, Bvh8};
 use glam::{Vec2, Vec3};
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
@@ -90,9 +91,39 @@ pub(crate) fn obvhs_triangles(geometry: &Geometry) -> Vec<Triangle> {
 /// cost-minimal collapse, which merges subtrees into leaves itself.
 const BVH2_LEAF: u32 = 4;
 
+/// How wide the CPU ray caster's BVH is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BvhWidth {
+    /// 8 where the CPU has AVX2, else 4.
+    #[default]
+    Auto,
+    /// 4 children per node (SSE, NEON).
+    Four,
+    /// 8 children per node (AVX2; 4 where the CPU lacks it).
+    Eight,
+}
+
+/// True when this CPU runs the 8-wide BVH's AVX2 code.
+fn avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// The BVH, 4 or 8 wide (the same hits either way).
+enum Accel {
+    Four(Bvh4),
+    Eight(Bvh8),
+}
+
 /// The scene's BVH and triangles, in BVH order.
 pub struct RayCaster {
-    bvh: Bvh4,
+    bvh: Accel,
     /// BVH order → global triangle id.
     ids: Vec<u32>,
     /// BVH order → material, for masked triangles only (`u32::MAX` otherwise).
@@ -102,7 +133,8 @@ pub struct RayCaster {
 }
 
 impl RayCaster {
-    /// Builds the BVH over `geometry` (obvhs medium build preset).
+    /// Builds the BVH over `geometry` (obvhs medium build preset; 8 wide
+    /// where the CPU has AVX2, else 4).
     pub fn new(scene: &Scene, geometry: &Geometry) -> RayCaster {
         Self::with_params(scene, geometry, BvhBuildParams::medium_build())
     }
@@ -112,6 +144,16 @@ impl RayCaster {
     /// capped at [`BVH2_LEAF`] triangles, and the BVH4's collapse decides
     /// its own leaves.
     pub fn with_params(scene: &Scene, geometry: &Geometry, params: BvhBuildParams) -> RayCaster {
+        Self::with_width(scene, geometry, params, BvhWidth::Auto)
+    }
+
+    /// [`RayCaster::with_params`] with the BVH's width chosen.
+    pub fn with_width(
+        scene: &Scene,
+        geometry: &Geometry,
+        params: BvhBuildParams,
+        width: BvhWidth,
+    ) -> RayCaster {
         let params = BvhBuildParams {
             max_prims_per_leaf: params.max_prims_per_leaf.min(BVH2_LEAF),
             ..params
@@ -136,7 +178,16 @@ impl RayCaster {
             })
             .collect();
         let masked: Vec<bool> = masked_material.iter().map(|&m| m != u32::MAX).collect();
-        let bvh = Bvh4::new(&bvh2, &ordered, &masked);
+        let eight = match width {
+            BvhWidth::Four => false,
+            BvhWidth::Eight => true,
+            BvhWidth::Auto => avx2(),
+        };
+        let bvh = if eight && avx2() {
+            Accel::Eight(Bvh8::new(&bvh2, &ordered, &masked))
+        } else {
+            Accel::Four(Bvh4::new(&bvh2, &ordered, &masked))
+        };
         let uv0 = ids.iter().map(|&g| geometry.uv0[g as usize]).collect();
         RayCaster {
             bvh,
@@ -163,25 +214,50 @@ impl RayCaster {
 
     /// The closest hit along `origin + t·dir`, `t ∈ [0, tmax]` (`dir` unit).
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        self.bvh
-            .closest_hit(origin, dir, tmax, |k, u, v| self.keep(k, u, v))
-            .map(|(k, t, u, v)| Hit {
-                tri: self.ids[k as usize],
-                t,
-                u,
-                v,
-            })
+        let keep = |k, u, v| self.keep(k, u, v);
+        match &self.bvh {
+            Accel::Four(b) => b.closest_hit(origin, dir, tmax, keep),
+            // SAFETY: `Eight` is built only where AVX2 was detected.
+            #[cfg(target_arch = "x86_64")]
+            Accel::Eight(b) => unsafe { b.closest_hit_avx2(origin, dir, tmax, keep) },
+            #[cfg(not(target_arch = "x86_64"))]
+            Accel::Eight(b) => b.closest_hit(origin, dir, tmax, keep),
+        }
+        .map(|(k, t, u, v)| Hit {
+            tri: self.ids[k as usize],
+            t,
+            u,
+            v,
+        })
     }
 
     /// True when nothing lies along `origin + t·dir` for `t ∈ [0, tmax]`.
     pub fn unoccluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        self.bvh
-            .unoccluded(origin, dir, tmax, |k, u, v| self.keep(k, u, v))
+        let keep = |k, u, v| self.keep(k, u, v);
+        match &self.bvh {
+            Accel::Four(b) => b.unoccluded(origin, dir, tmax, keep),
+            // SAFETY: as in `closest_hit`.
+            #[cfg(target_arch = "x86_64")]
+            Accel::Eight(b) => unsafe { b.unoccluded_avx2(origin, dir, tmax, keep) },
+            #[cfg(not(target_arch = "x86_64"))]
+            Accel::Eight(b) => b.unoccluded(origin, dir, tmax, keep),
+        }
+    }
+
+    /// Children per BVH node: 4 or 8.
+    pub fn width(&self) -> usize {
+        match &self.bvh {
+            Accel::Four(_) => 4,
+            Accel::Eight(_) => 8,
+        }
     }
 
     /// The BVH's shape and surface-area cost.
-    pub fn stats(&self) -> Bvh4Stats {
-        self.bvh.stats()
+    pub fn stats(&self) -> BvhStats {
+        match &self.bvh {
+            Accel::Four(b) => b.stats(),
+            Accel::Eight(b) => b.stats(),
+        }
     }
 
     /// Number of triangles.
@@ -307,7 +383,15 @@ mod tests {
             ..Default::default()
         };
         let g = random_geometry(2000, 3);
-        let rc = RayCaster::new(&scene, &g);
+        for width in [BvhWidth::Four, BvhWidth::Eight] {
+            let rc = RayCaster::with_width(&scene, &g, BvhBuildParams::medium_build(), width);
+            brute_force_agrees(&rc, &g);
+        }
+    }
+
+    /// `rc`'s closest hits and occlusion equal a brute-force scan of every
+    /// triangle of `g`.
+    fn brute_force_agrees(rc: &RayCaster, g: &Geometry) {
         // Textbook Möller–Trumbore, independent of the SIMD kernel's form.
         let brute = |p: &[Vec3; 3], o: Vec3, d: Vec3| -> Option<(f32, f32, f32)> {
             let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
@@ -353,6 +437,49 @@ mod tests {
             assert_eq!(rc.unoccluded(o, d, f32::INFINITY), best.is_none());
         }
         assert!(hits > 200, "too few hits ({hits}) to mean anything");
+    }
+
+    /// The 4- and 8-wide BVHs give the same answers, bit for bit, also
+    /// where coplanar twins (the same triangle again) tie at one distance.
+    #[test]
+    fn widths_give_the_same_hits() {
+        let scene = Scene {
+            materials: vec![crate::scene::Material::fallback()],
+            ..Default::default()
+        };
+        // Eight copies of each triangle: more than a packet holds, so twins
+        // lie in different leaves, visited in different orders.
+        let mut g = random_geometry(6000, 4);
+        for k in 0..6000 {
+            g.p_ws[k] = g.p_ws[k & !7];
+        }
+        let p = BvhBuildParams::medium_build();
+        let four = RayCaster::with_width(&scene, &g, p, BvhWidth::Four);
+        let eight = RayCaster::with_width(&scene, &g, p, BvhWidth::Eight);
+        assert_eq!(four.width(), 4);
+        let mut s = Stream::new(2, 0, 0);
+        let mut hits = 0;
+        for _ in 0..3000 {
+            let o = Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) * 12.0 - 1.0;
+            let d = (Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()) - 0.5).normalize();
+            let tmax = s.next_f32() * 10.0;
+            let a = four.closest_hit(o, d, f32::INFINITY);
+            let b = eight.closest_hit(o, d, f32::INFINITY);
+            assert_eq!(
+                a.map(|h| (h.tri, h.t.to_bits(), h.u.to_bits(), h.v.to_bits())),
+                b.map(|h| (h.tri, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
+            );
+            // Of two twins the one first in BVH order wins, however the
+            // BVH is visited.
+            if let Some(h) = a {
+                let at = |tri: u32| four.ids.iter().position(|&g| g == tri).unwrap();
+                let first = (h.tri & !7..(h.tri & !7) + 8).map(at).min().unwrap();
+                assert_eq!(at(h.tri), first, "a later twin ({}) won", h.tri);
+                hits += 1;
+            }
+            assert_eq!(four.unoccluded(o, d, tmax), eight.unoccluded(o, d, tmax));
+        }
+        assert!(hits > 300, "too few hits ({hits})");
     }
 
     /// A ray leaving a wall's bottom edge into the floor it stands on hits
