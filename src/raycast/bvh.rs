@@ -83,7 +83,8 @@ pub(crate) struct Bvh<const W: usize> {
 
 /// The 4-wide BVH (SSE, NEON).
 pub(crate) type Bvh4 = Bvh<4>;
-/// The 8-wide BVH (AVX).
+/// The 8-wide BVH (AVX; built on x86-64 only).
+#[cfg(target_arch = "x86_64")]
 pub(crate) type Bvh8 = Bvh<8>;
 
 /// The shape of a [`Bvh`]: what its traversal cost depends on.
@@ -216,27 +217,6 @@ impl BoxTest for Node<8> {
     }
 }
 
-/// Elsewhere (never chosen: the 8-wide BVH is built only on x86-64 with
-/// AVX2), the same test with `wide`'s portable 8 lanes.
-#[cfg(not(target_arch = "x86_64"))]
-impl BoxTest for Node<8> {
-    type Near = [f32; 8];
-    #[inline(always)]
-    fn boxes(&self, ray: &Prepared, tmax: f32) -> ([f32; 8], i32) {
-        use wide::f32x8;
-        let mut near = f32x8::splat(0.0);
-        let mut far = f32x8::splat(tmax);
-        for a in 0..3 {
-            let inv = f32x8::splat(ray.inv_s[a]);
-            let noi = f32x8::splat(ray.neg_org_inv_s[a]);
-            near = near.fast_max(f32x8::new(self.b[ray.near[a]]) * inv + noi);
-            far = far.fast_min(f32x8::new(self.b[ray.far[a]]) * inv + noi);
-        }
-        let far = far * f32x8::splat(1.000_000_4);
-        (near.to_array(), near.cmp_le(far).move_mask())
-    }
-}
-
 /// The 8-wide BVH's queries compiled for AVX2.
 #[cfg(target_arch = "x86_64")]
 impl Bvh8 {
@@ -287,6 +267,14 @@ const LEAF_PACKETS: u32 = 2;
 /// The triangles being built over, in BVH order, and which are masked.
 type Tris<'a> = (&'a [[Vec3; 3]], &'a [bool]);
 
+/// What the collapse reads: the binary tree, its subtrees' plans and the
+/// triangles.
+struct Build<'a, const W: usize> {
+    bvh2: &'a obvhs::bvh2::Bvh2,
+    plans: &'a [Plan<W>],
+    tris: Tris<'a>,
+}
+
 /// How a BVH2 subtree is best laid out in k child slots of a W-wide node
 /// (k = 1..=W), with its surface-area cost.
 #[derive(Clone, Copy, Debug)]
@@ -331,11 +319,16 @@ where
         }
         let plans = Self::plan(bvh2);
         let mut todo: Vec<(u32, u32)> = Vec::new();
-        b.root = b.reference(bvh2, &plans, 0, (tris, masked), &mut todo);
+        let cx = Build {
+            bvh2,
+            plans: &plans,
+            tris: (tris, masked),
+        };
+        b.root = b.reference(&cx, 0, &mut todo);
         while let Some((index, n)) = todo.pop() {
             let mut children = Vec::with_capacity(W);
             Self::slots(bvh2, &plans, n, W, &mut children);
-            b.fill(bvh2, &plans, index, &children, (tris, masked), &mut todo);
+            b.fill(&cx, index, &children, &mut todo);
         }
         b.stack_needed = (W - 1) * b.depth() + 1;
         b
@@ -466,17 +459,10 @@ where
 
     /// The reference for BVH2 subtree `n` in one slot: its leaf packets, or
     /// a new inner node queued in `todo` to be filled.
-    fn reference(
-        &mut self,
-        bvh2: &obvhs::bvh2::Bvh2,
-        plans: &[Plan<W>],
-        n: u32,
-        tris: Tris,
-        todo: &mut Vec<(u32, u32)>,
-    ) -> u32 {
-        if plans[n as usize].leaf {
-            let ids = Self::triangles(bvh2, n);
-            self.leaf(&ids, tris)
+    fn reference(&mut self, cx: &Build<W>, n: u32, todo: &mut Vec<(u32, u32)>) -> u32 {
+        if cx.plans[n as usize].leaf {
+            let ids = Self::triangles(cx.bvh2, n);
+            self.leaf(&ids, cx.tris)
         } else {
             let index = self.nodes.len() as u32;
             self.nodes.push(Node {
@@ -496,24 +482,16 @@ where
     }
 
     /// Fills inner node `index` with the BVH2 subtrees `children`.
-    fn fill(
-        &mut self,
-        bvh2: &obvhs::bvh2::Bvh2,
-        plans: &[Plan<W>],
-        index: u32,
-        children: &[u32],
-        tris: Tris,
-        todo: &mut Vec<(u32, u32)>,
-    ) {
+    fn fill(&mut self, cx: &Build<W>, index: u32, children: &[u32], todo: &mut Vec<(u32, u32)>) {
         for (slot, &c) in children.iter().enumerate() {
-            let reference = self.reference(bvh2, plans, c, tris, todo);
+            let reference = self.reference(cx, c, todo);
             // Inner boxes from obvhs; a leaf's is its triangles' box, clipped
             // to obvhs's, which bounds only the pieces of triangles split
             // before the build (pre_split) that the leaf stands for.
-            let n = &bvh2.nodes[c as usize];
+            let n = &cx.bvh2.nodes[c as usize];
             let (mut lo, mut hi) = (Vec3::from(n.aabb.min), Vec3::from(n.aabb.max));
             if reference & LEAF != 0 {
-                let (tlo, thi) = bounds(tris.0, &Self::triangles(bvh2, c));
+                let (tlo, thi) = bounds(cx.tris.0, &Self::triangles(cx.bvh2, c));
                 (lo, hi) = (lo.max(tlo), hi.min(thi));
             }
             let node = &mut self.nodes[index as usize];
@@ -944,11 +922,9 @@ mod tests {
     use super::*;
     use crate::sampling::Stream;
 
-    /// A BVH4 over `n` random triangles, as `RayCaster` builds it.
-    fn random_bvh<const W: usize>(n: usize, seed: u64) -> (Bvh<W>, Vec<[Vec3; 3]>)
-    where
-        Node<W>: BoxTest,
-    {
+    /// obvhs's BVH2 over `n` random triangles, as `RayCaster` builds it,
+    /// and the triangles.
+    fn random_bvh2(n: usize, seed: u64) -> (obvhs::bvh2::Bvh2, Vec<[Vec3; 3]>) {
         let mut s = Stream::new(seed, 0, 0);
         let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
         let tris: Vec<[Vec3; 3]> = (0..n)
@@ -974,6 +950,16 @@ mod tests {
             params,
             &mut std::time::Duration::default(),
         );
+        (bvh2, tris)
+    }
+
+    /// A W-wide BVH over `n` random triangles, and the triangles in BVH
+    /// order.
+    fn random_bvh<const W: usize>(n: usize, seed: u64) -> (Bvh<W>, Vec<[Vec3; 3]>)
+    where
+        Node<W>: BoxTest,
+    {
+        let (bvh2, tris) = random_bvh2(n, seed);
         let ordered: Vec<[Vec3; 3]> = bvh2
             .primitive_indices
             .iter()
@@ -1064,27 +1050,7 @@ mod tests {
     /// their largest inner child until they have four; BVH2 leaves are
     /// leaves.
     fn greedy_cost(n: usize, seed: u64) -> f64 {
-        let mut s = Stream::new(seed, 0, 0);
-        let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
-        let tris: Vec<obvhs::triangle::Triangle> = (0..n)
-            .map(|_| {
-                let c = v() * 20.0;
-                obvhs::triangle::Triangle {
-                    v0: (c + v() - 0.5).into(),
-                    v1: (c + v() - 0.5).into(),
-                    v2: (c + v() - 0.5).into(),
-                }
-            })
-            .collect();
-        let params = obvhs::BvhBuildParams {
-            max_prims_per_leaf: 4,
-            ..obvhs::BvhBuildParams::medium_build()
-        };
-        let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
-            &tris,
-            params,
-            &mut std::time::Duration::default(),
-        );
+        let (bvh2, _) = random_bvh2(n, seed);
         let area = |c: u32| bvh2.nodes[c as usize].aabb.half_area() as f64;
         let root = area(0);
         let mut cost = 0.0;

@@ -10,7 +10,9 @@ pub use bvh::BvhStats;
 
 use crate::geometry::Geometry;
 use crate::scene::{Alpha, Scene, Texture, TextureRef};
-use bvh::{Bvh4, Bvh8};
+use bvh::Bvh4;
+#[cfg(target_arch = "x86_64")]
+use bvh::Bvh8;
 use glam::{Vec2, Vec3};
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
@@ -118,6 +120,7 @@ fn avx2() -> bool {
 /// The BVH, 4 or 8 wide (the same hits either way).
 enum Accel {
     Four(Bvh4),
+    #[cfg(target_arch = "x86_64")]
     Eight(Bvh8),
 }
 
@@ -183,9 +186,15 @@ impl RayCaster {
             BvhWidth::Eight => true,
             BvhWidth::Auto => avx2(),
         };
+        #[cfg(target_arch = "x86_64")]
         let bvh = if eight && avx2() {
             Accel::Eight(Bvh8::new(&bvh2, &ordered, &masked))
         } else {
+            Accel::Four(Bvh4::new(&bvh2, &ordered, &masked))
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let bvh = {
+            let _ = eight;
             Accel::Four(Bvh4::new(&bvh2, &ordered, &masked))
         };
         let uv0 = ids.iter().map(|&g| geometry.uv0[g as usize]).collect();
@@ -220,8 +229,6 @@ impl RayCaster {
             // SAFETY: `Eight` is built only where AVX2 was detected.
             #[cfg(target_arch = "x86_64")]
             Accel::Eight(b) => unsafe { b.closest_hit_avx2(origin, dir, tmax, keep) },
-            #[cfg(not(target_arch = "x86_64"))]
-            Accel::Eight(b) => b.closest_hit(origin, dir, tmax, keep),
         }
         .map(|(k, t, u, v)| Hit {
             tri: self.ids[k as usize],
@@ -239,8 +246,6 @@ impl RayCaster {
             // SAFETY: as in `closest_hit`.
             #[cfg(target_arch = "x86_64")]
             Accel::Eight(b) => unsafe { b.unoccluded_avx2(origin, dir, tmax, keep) },
-            #[cfg(not(target_arch = "x86_64"))]
-            Accel::Eight(b) => b.unoccluded(origin, dir, tmax, keep),
         }
     }
 
@@ -248,6 +253,7 @@ impl RayCaster {
     pub fn width(&self) -> usize {
         match &self.bvh {
             Accel::Four(_) => 4,
+            #[cfg(target_arch = "x86_64")]
             Accel::Eight(_) => 8,
         }
     }
@@ -256,6 +262,7 @@ impl RayCaster {
     pub fn stats(&self) -> BvhStats {
         match &self.bvh {
             Accel::Four(b) => b.stats(),
+            #[cfg(target_arch = "x86_64")]
             Accel::Eight(b) => b.stats(),
         }
     }
