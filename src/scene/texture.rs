@@ -74,9 +74,15 @@ fn srgb_lut() -> &'static [f32; 256] {
 
 impl Texture {
     fn fetch(&self, x: i64, y: i64) -> Vec4 {
+        self.texel(
+            self.wrap_s.apply(x, self.width),
+            self.wrap_t.apply(y, self.height),
+        )
+    }
+
+    /// The texel at wrapped coordinates (`xi` < width, `yi` < height).
+    fn texel(&self, xi: u32, yi: u32) -> Vec4 {
         let lut = srgb_lut();
-        let xi = self.wrap_s.apply(x, self.width);
-        let yi = self.wrap_t.apply(y, self.height);
         let [r, g, b, a] = self.rgba[(yi * self.width + xi) as usize];
         Vec4::new(
             lut[r as usize],
@@ -97,8 +103,17 @@ impl Texture {
         let (x0, y0) = (x.floor(), y.floor());
         let (tx, ty) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let a = self.fetch(x0, y0).lerp(self.fetch(x0 + 1, y0), tx);
-        let b = self.fetch(x0, y0 + 1).lerp(self.fetch(x0 + 1, y0 + 1), tx);
+        // Each axis wrapped once (not once per corner).
+        let (xa, xb) = (
+            self.wrap_s.apply(x0, self.width),
+            self.wrap_s.apply(x0 + 1, self.width),
+        );
+        let (ya, yb) = (
+            self.wrap_t.apply(y0, self.height),
+            self.wrap_t.apply(y0 + 1, self.height),
+        );
+        let a = self.texel(xa, ya).lerp(self.texel(xb, ya), tx);
+        let b = self.texel(xa, yb).lerp(self.texel(xb, yb), tx);
         a.lerp(b, ty)
     }
 }
@@ -120,6 +135,11 @@ impl TextureRef {
     /// Applies `KHR_texture_transform`: uv' = T · R · S · uv.
     pub fn transform_uv(&self, uv: Vec2) -> Vec2 {
         let s = uv * self.scale;
+        if self.rotation == 0.0 {
+            // The common case, without a sine and cosine per sample (the
+            // same result: cos 0 = 1 and sin 0 = 0 exactly).
+            return s + self.offset;
+        }
         let (sin, cos) = self.rotation.sin_cos();
         Vec2::new(cos * s.x + sin * s.y, -sin * s.x + cos * s.y) + self.offset
     }
