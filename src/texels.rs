@@ -219,7 +219,8 @@ const FOOTPRINT_PURPOSE: u64 = 10;
 /// Mean albedo and emission of a textured `material` over the part of texel
 /// `xy` that triangle `t` (lightmap corners `lm`) covers: a box filter
 /// over the texel's footprint, from 4 × 4 jittered stratified points in the texel
-/// that fall inside the triangle and are not cut out. The final gather
+/// that fall inside the triangle and are not cut out, each read from the
+/// mipmap level as coarse as the points are apart (`mips`). The final gather
 /// reads a hit's outgoing radiance as texel albedo × texel irradiance, so
 /// this is the mean of ρ over the texel, not a point sample of a texture
 /// that can vary much faster than the texels do (a 25 cm texel spans
@@ -227,6 +228,7 @@ const FOOTPRINT_PURPOSE: u64 = 10;
 /// value is exact) and when no grid point lands in the piece.
 fn footprint_mean(
     scene: &Scene,
+    mips: &crate::scene::Mips,
     material: u32,
     geometry: &Geometry,
     t: u32,
@@ -239,6 +241,24 @@ fn footprint_mean(
     }
     let (mut albedo, mut emission, mut count) = (Vec3::ZERO, Vec3::ZERO, 0u32);
     let step = 1.0 / FOOTPRINT_GRID as f32;
+    // Each sample reads the mipmap level whose texels are as wide as the
+    // samples are apart, so the samples together box-filter the whole
+    // footprint (and read a small, cached level); a masked material's alpha
+    // is tested on the texture itself, as the ray caster tests it.
+    let spacing = sample_spacing(scene, geometry, t, lm, step);
+    let level = |r: &Option<crate::scene::TextureRef>| {
+        r.as_ref().map_or(0, |r| {
+            let px = spacing(r);
+            if px >= 2.0 {
+                px.log2().floor() as u32
+            } else {
+                0
+            }
+        })
+    };
+    let masked = matches!(m.alpha, crate::scene::Alpha::Mask { .. });
+    let albedo_level = if masked { 0 } else { level(&m.albedo_texture) };
+    let emission_level = level(&m.emission_texture);
     // Jittered, not regular: a regular grid aliases with regular textures
     // (a fine checker can put every grid point on one colour).
     let item = ((t as u64) << 32) ^ ((xy[1] as u64 & 0xffff) << 16) ^ (xy[0] as u64 & 0xffff);
@@ -255,18 +275,53 @@ fn footprint_mean(
                 continue;
             }
             let uv0 = geometry.uv0_at(t, w.y, w.z);
-            let (rho, alpha) = scene.albedo_at(material, uv0);
+            let (rho, alpha) = scene.albedo_level(material, uv0, mips, albedo_level);
             if let crate::scene::Alpha::Mask { cutoff } = m.alpha {
                 if alpha < cutoff {
                     continue;
                 }
             }
             albedo += rho;
-            emission += scene.emission_at(material, uv0);
+            emission += scene.emission_level(material, uv0, mips, emission_level);
             count += 1;
         }
     }
     (count > 0).then(|| (albedo / count as f32, emission / count as f32))
+}
+
+/// How many texels of a texture apart footprint samples `step` lightmap
+/// texels apart land on triangle `t` (at least; the fewer of the two
+/// lightmap axes), per texture reference.
+fn sample_spacing<'a>(
+    scene: &'a Scene,
+    geometry: &Geometry,
+    t: u32,
+    lm: &[Vec2; 3],
+    step: f32,
+) -> impl Fn(&crate::scene::TextureRef) -> f32 + 'a {
+    // d uv0 / d lm along the lightmap's x and y, from the triangle's two
+    // edges in both spaces (uv0 is affine in lm over the triangle).
+    let uv = &geometry.uv0[t as usize];
+    let (l1, l2) = (lm[1] - lm[0], lm[2] - lm[0]);
+    let (u1, u2) = (uv[1] - uv[0], uv[2] - uv[0]);
+    let det = l1.perp_dot(l2);
+    let (dx, dy) = if det.abs() > 1e-12 {
+        ((u1 * l2.y - u2 * l1.y) / det, (u2 * l1.x - u1 * l2.x) / det)
+    } else {
+        (Vec2::ZERO, Vec2::ZERO)
+    };
+    move |r| {
+        let tex = &scene.textures[r.texture as usize];
+        // The transform's rotation keeps lengths; a texel is at most
+        // 1 / min(width, height) across in uv, so this never overstates.
+        let px = tex.width.min(tex.height) as f32;
+        let apart = (dx * r.scale).length().min((dy * r.scale).length()) * step * px;
+        if apart.is_finite() {
+            apart
+        } else {
+            0.0
+        }
+    }
 }
 
 #[derive(Clone, Copy, Default)]
@@ -293,6 +348,8 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
         }
         r.1 = t + 1;
     }
+    // Mipmaps for the footprint means, dropped when the stage ends.
+    let mips = crate::scene::Mips::new(scene.textures.len());
     // Per instance: covered cells (x, y, sums), unmapped triangles, overlaps.
     type InstanceCells = (Vec<(u32, u32, Accum, Vec<Piece>)>, u64, u64);
     let per_instance: Vec<InstanceCells> = ranges
@@ -361,7 +418,7 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
                         cell.p += geometry.point(t as u32, u, v) * a;
                         cell.n += geometry.ng_ws[t] * a;
                         let (albedo, emission) =
-                            footprint_mean(scene, material, geometry, t as u32, &lm, [x, y])
+                            footprint_mean(scene, &mips, material, geometry, t as u32, &lm, [x, y])
                                 .unwrap_or_else(|| {
                                     (
                                         scene.albedo_at(material, uv0).0,

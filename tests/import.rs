@@ -298,8 +298,11 @@ fn fine_checker_furnace() {
         rms * 100.0
     );
     assert!((mean - want).abs() / want < 0.005, "mean {mean} vs {want}");
-    assert!(rms < 0.005, "texel RMS {:.3} %", rms * 100.0);
-    assert!(worst < 0.025, "worst texel off by {:.3} %", worst * 100.0);
+    // The footprint samples read the mipmap level as coarse as they are
+    // apart, so each texel's ρ̄ is the box mean itself (16 bilinear samples
+    // of the full-size checker gave 0.16 % RMS and 1.2 % at worst).
+    assert!(rms < 0.001, "texel RMS {:.3} %", rms * 100.0);
+    assert!(worst < 0.005, "worst texel off by {:.3} %", worst * 100.0);
 }
 
 /// `--uv existing`: the plates with their own TEXCOORD_1 give the same answer.

@@ -10,7 +10,7 @@ pub mod texture;
 
 pub use self::gltf::{load, LoadOptions};
 use glam::{Mat3, Mat4, Vec2, Vec3};
-pub use texture::{Texture, TextureRef, Wrap};
+pub use texture::{Mips, Texture, TextureRef, Wrap};
 
 /// A mesh in its local space: the triangles of all its (triangle) primitives
 /// concatenated. Degenerate triangles have already been removed.
@@ -263,10 +263,21 @@ impl Scene {
 
     /// Albedo of `material` at texture coordinate `uv0` (linear RGB), and its alpha.
     pub fn albedo_at(&self, material: u32, uv0: Vec2) -> (Vec3, f32) {
+        self.albedo_level(material, uv0, &Mips::default(), 0)
+    }
+
+    /// [`Scene::albedo_at`] from mipmap `level` of the texture (`mips`:
+    /// this scene's; [`Texture::sample_level`]).
+    pub fn albedo_level(&self, material: u32, uv0: Vec2, mips: &Mips, level: u32) -> (Vec3, f32) {
         let m = &self.materials[material as usize];
         match &m.albedo_texture {
             Some(t) => {
-                let texel = self.textures[t.texture as usize].sample(t.transform_uv(uv0));
+                let texel = self.textures[t.texture as usize].sample_level(
+                    mips,
+                    t.texture,
+                    t.transform_uv(uv0),
+                    level,
+                );
                 (m.albedo * texel.truncate(), m.alpha_factor * texel.w)
             }
             None => (m.albedo, m.alpha_factor),
@@ -275,12 +286,17 @@ impl Scene {
 
     /// Emitted radiance of `material` at `uv0` (linear RGB).
     pub fn emission_at(&self, material: u32, uv0: Vec2) -> Vec3 {
+        self.emission_level(material, uv0, &Mips::default(), 0)
+    }
+
+    /// [`Scene::emission_at`] from mipmap `level` of the texture.
+    pub fn emission_level(&self, material: u32, uv0: Vec2, mips: &Mips, level: u32) -> Vec3 {
         let m = &self.materials[material as usize];
         match &m.emission_texture {
             Some(t) if m.is_emissive() => {
                 m.emission
                     * self.textures[t.texture as usize]
-                        .sample(t.transform_uv(uv0))
+                        .sample_level(mips, t.texture, t.transform_uv(uv0), level)
                         .truncate()
             }
             _ => m.emission,

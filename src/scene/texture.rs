@@ -49,6 +49,33 @@ pub struct Texture {
     pub wrap_t: Wrap,
 }
 
+/// Box-filtered levels 1, 2, … (each half the size of the one above, to
+/// 1 × 1) of a scene's textures, each built on first use; held only while
+/// they are read (the texels stage), not by the scene.
+#[derive(Debug, Default)]
+pub struct Mips(Vec<std::sync::OnceLock<Vec<Level>>>);
+
+impl Mips {
+    /// Room for `textures` textures' levels (none built yet).
+    pub fn new(textures: usize) -> Mips {
+        Mips((0..textures).map(|_| Default::default()).collect())
+    }
+
+    /// The levels of texture `index`, `texture`.
+    fn of(&self, index: u32, texture: &Texture) -> &[Level] {
+        self.0[index as usize].get_or_init(|| texture.build_mips())
+    }
+}
+
+/// One prefiltered level of a [`Texture`]: linear RGBA, 16 bits per
+/// channel (averaging in linear space; no sRGB requantisation).
+#[derive(Clone, Debug)]
+pub struct Level {
+    width: u32,
+    height: u32,
+    texels: Vec<[u16; 4]>,
+}
+
 /// sRGB transfer function inverse, IEC 61966-2-1.
 pub fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
@@ -81,6 +108,7 @@ impl Texture {
     }
 
     /// The texel at wrapped coordinates (`xi` < width, `yi` < height).
+    #[inline]
     fn texel(&self, xi: u32, yi: u32) -> Vec4 {
         let lut = srgb_lut();
         let [r, g, b, a] = self.rgba[(yi * self.width + xi) as usize];
@@ -98,23 +126,93 @@ impl Texture {
         if !uv.is_finite() {
             return self.fetch(0, 0);
         }
-        let x = uv.x * self.width as f32 - 0.5;
-        let y = uv.y * self.height as f32 - 0.5;
+        self.bilinear(uv, self.width, self.height, |x, y| self.texel(x, y))
+    }
+
+    /// Bilinear sample at `uv` of level `level` (0: the texture itself;
+    /// levels past the last, 1 × 1, read the last) of texture `index` of
+    /// `mips`: the texture box-filtered over 2^level × 2^level texels
+    /// first, as a mipmap (Williams 1983), for averaging samples spread
+    /// that far apart.
+    pub fn sample_level(&self, mips: &Mips, index: u32, uv: Vec2, level: u32) -> Vec4 {
+        if level == 0 || !uv.is_finite() {
+            return self.sample(uv);
+        }
+        let levels = mips.of(index, self);
+        let Some(l) = levels.get((level as usize).min(levels.len()).wrapping_sub(1)) else {
+            return self.sample(uv);
+        };
+        self.bilinear(uv, l.width, l.height, |x, y| {
+            Vec4::from_array(l.texels[(y * l.width + x) as usize].map(|c| c as f32 / 65535.0))
+        })
+    }
+
+    /// Bilinear interpolation of `texel` over a `width` × `height` grid
+    /// at `uv`, with this texture's wrap modes (each axis wrapped once, not
+    /// once per corner).
+    #[inline]
+    fn bilinear(
+        &self,
+        uv: Vec2,
+        width: u32,
+        height: u32,
+        texel: impl Fn(u32, u32) -> Vec4,
+    ) -> Vec4 {
+        let x = uv.x * width as f32 - 0.5;
+        let y = uv.y * height as f32 - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
         let (tx, ty) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        // Each axis wrapped once (not once per corner).
         let (xa, xb) = (
-            self.wrap_s.apply(x0, self.width),
-            self.wrap_s.apply(x0 + 1, self.width),
+            self.wrap_s.apply(x0, width),
+            self.wrap_s.apply(x0 + 1, width),
         );
         let (ya, yb) = (
-            self.wrap_t.apply(y0, self.height),
-            self.wrap_t.apply(y0 + 1, self.height),
+            self.wrap_t.apply(y0, height),
+            self.wrap_t.apply(y0 + 1, height),
         );
-        let a = self.texel(xa, ya).lerp(self.texel(xb, ya), tx);
-        let b = self.texel(xa, yb).lerp(self.texel(xb, yb), tx);
+        let a = texel(xa, ya).lerp(texel(xb, ya), tx);
+        let b = texel(xa, yb).lerp(texel(xb, yb), tx);
         a.lerp(b, ty)
+    }
+
+    /// Levels 1, 2, … to 1 × 1: each texel the mean of the 2 × 2 texels
+    /// above it in linear RGBA (of an odd size, the last row or column
+    /// counts twice).
+    fn build_mips(&self) -> Vec<Level> {
+        let mut levels: Vec<Level> = Vec::new();
+        let (mut w, mut h) = (self.width, self.height);
+        while w > 1 || h > 1 {
+            let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+            // The level above: this texture, or the last level built (read
+            // in place, so no full-size copy in floats is ever made).
+            let above = levels.last();
+            let at = |x: u32, y: u32| match above {
+                None => self.texel(x, y),
+                Some(l) => {
+                    Vec4::from_array(l.texels[(y * w + x) as usize].map(|c| c as f32 / 65535.0))
+                }
+            };
+            let mut texels = Vec::with_capacity((nw * nh) as usize);
+            for y in 0..nh {
+                let (y0, y1) = (2 * y, (2 * y + 1).min(h - 1));
+                for x in 0..nw {
+                    let (x0, x1) = (2 * x, (2 * x + 1).min(w - 1));
+                    let mean = 0.25 * (at(x0, y0) + at(x1, y0) + at(x0, y1) + at(x1, y1));
+                    texels.push(
+                        mean.to_array()
+                            .map(|c| (c.clamp(0.0, 1.0) * 65535.0).round() as u16),
+                    );
+                }
+            }
+            levels.push(Level {
+                width: nw,
+                height: nh,
+                texels,
+            });
+            (w, h) = (nw, nh);
+        }
+        levels
     }
 }
 
@@ -148,6 +246,41 @@ impl TextureRef {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Mip levels are linear-space box means, down to 1 × 1 (odd sizes
+    /// included), and a level past the last reads the whole texture's mean.
+    #[test]
+    fn mips_are_linear_box_means() {
+        let (dark, light) = (100u8, 210u8);
+        let t = Texture {
+            width: 5,
+            height: 3,
+            rgba: (0..15)
+                .map(|i| {
+                    let g = if i % 2 == 0 { dark } else { light };
+                    [g, g, g, 255]
+                })
+                .collect(),
+            wrap_s: Wrap::Repeat,
+            wrap_t: Wrap::Repeat,
+        };
+        let levels = t.build_mips();
+        let dims: Vec<(u32, u32)> = levels.iter().map(|l| (l.width, l.height)).collect();
+        assert_eq!(dims, [(3, 2), (2, 1), (1, 1)]);
+        // Level 1's first texel: the 2 × 2 block of texels 0, 1, 5, 6 — two
+        // dark, two light — in linear space (not the sRGB mean).
+        let lin = |g: u8| srgb_to_linear(g as f32 / 255.0);
+        let want = 0.5 * (lin(dark) + lin(light));
+        let got = levels[0].texels[0][0] as f32 / 65535.0;
+        assert!((got - want).abs() < 1e-4, "{got} vs {want}");
+        let mips = Mips::new(1);
+        let deep = t.sample_level(&mips, 0, Vec2::splat(0.5), 30);
+        let one = levels.last().unwrap().texels[0][0] as f32 / 65535.0;
+        assert!((deep.x - one).abs() < 1e-6 && deep.w > 0.999);
+        // Level 0 is the texture's own bilinear sample.
+        let uv = Vec2::new(0.3, 0.6);
+        assert_eq!(t.sample_level(&mips, 0, uv, 0), t.sample(uv));
+    }
 
     #[test]
     fn srgb_round_trip() {
