@@ -246,15 +246,9 @@ fn footprint_mean(
     // footprint (and read a small, cached level); a masked material's alpha
     // is tested on the texture itself, as the ray caster tests it.
     let spacing = sample_spacing(scene, geometry, t, lm, step);
+    // (Under one texel apart, log2 is negative and the cast gives level 0.)
     let level = |r: &Option<crate::scene::TextureRef>| {
-        r.as_ref().map_or(0, |r| {
-            let px = spacing(r);
-            if px >= 2.0 {
-                px.log2().floor() as u32
-            } else {
-                0
-            }
-        })
+        r.as_ref().map_or(0, |r| spacing(r).log2().floor() as u32)
     };
     let masked = matches!(m.alpha, crate::scene::Alpha::Mask { .. });
     let albedo_level = if masked { 0 } else { level(&m.albedo_texture) };

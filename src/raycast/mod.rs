@@ -181,21 +181,12 @@ impl RayCaster {
             })
             .collect();
         let masked: Vec<bool> = masked_material.iter().map(|&m| m != u32::MAX).collect();
-        let eight = match width {
-            BvhWidth::Four => false,
-            BvhWidth::Eight => true,
-            BvhWidth::Auto => avx2(),
-        };
-        #[cfg(target_arch = "x86_64")]
-        let bvh = if eight && avx2() {
-            Accel::Eight(Bvh8::new(&bvh2, &ordered, &masked))
-        } else {
-            Accel::Four(Bvh4::new(&bvh2, &ordered, &masked))
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let bvh = {
-            let _ = eight;
-            Accel::Four(Bvh4::new(&bvh2, &ordered, &masked))
+        // Eight wide only where this CPU runs its AVX2 code.
+        let eight = width != BvhWidth::Four && avx2();
+        let bvh = match eight {
+            #[cfg(target_arch = "x86_64")]
+            true => Accel::Eight(Bvh8::new(&bvh2, &ordered, &masked)),
+            _ => Accel::Four(Bvh4::new(&bvh2, &ordered, &masked)),
         };
         let uv0 = ids.iter().map(|&g| geometry.uv0[g as usize]).collect();
         RayCaster {
