@@ -28,10 +28,11 @@ fn main() -> anyhow::Result<()> {
         let b = radbake::bake(&scene, cfg, &Silent)?;
         let (mut se, mut n) = (0.0f64, 0usize);
         for (a, r) in b
+            .maps
             .lightmaps
             .texel_values
             .iter()
-            .zip(&reference.lightmaps.texel_values)
+            .zip(&reference.maps.lightmaps.texel_values)
         {
             se += ((*a - *r).length_squared() / 3.0) as f64;
             n += 1;
@@ -39,12 +40,13 @@ fn main() -> anyhow::Result<()> {
         Ok((se / n as f64).sqrt())
     };
     let mean = reference
+        .maps
         .lightmaps
         .texel_values
         .iter()
         .map(|v| v.element_sum() as f64 / 3.0)
         .sum::<f64>()
-        / reference.lightmaps.texel_values.len() as f64;
+        / reference.maps.lightmaps.texel_values.len() as f64;
     let noisy = rmse(&BakeConfig {
         final_gather: rays,
         denoise: false,

@@ -7,7 +7,7 @@
 //!
 //!     cargo run --release --example gpu_rays -- [scene.glb] --triangles 1000000 --rays 1048576
 //!
-//! Needs the `preview` feature (default) and an adapter (a software one,
+//! Needs the `gpu` feature (default) and an adapter (a software one,
 //! lavapipe, will do, but only a real GPU's figures mean anything).
 
 #[path = "../tests/benches/common/mod.rs"]
@@ -15,7 +15,7 @@ mod common;
 
 use clap::Parser;
 use glam::Vec3;
-use radbake::gpu::GpuRayCaster;
+use radbake::raycast::gpu::GpuRayCaster;
 use radbake::raycast::RayCaster;
 use rayon::prelude::*;
 use std::path::PathBuf;
@@ -72,12 +72,12 @@ fn main() -> anyhow::Result<()> {
             .collect::<Vec<_>>();
         cpu_best = cpu_best.min(t.elapsed().as_secs_f64());
     }
-    let mut best = None::<radbake::gpu::CastTimes>;
+    let mut best = None::<radbake::raycast::gpu::CastTimes>;
     let mut gpu_hits = Vec::new();
     for _ in 0..args.repeat.max(1) {
         let (hits, times) = gpu.timed_cast(&rays)?;
         gpu_hits = hits;
-        let total = |c: &radbake::gpu::CastTimes| c.upload + c.kernel + c.readback;
+        let total = |c: &radbake::raycast::gpu::CastTimes| c.upload + c.kernel + c.readback;
         if best.as_ref().is_none_or(|b| total(&times) < total(b)) {
             best = Some(times);
         }

@@ -28,11 +28,11 @@ fn main() -> anyhow::Result<()> {
     for w in &bake.warnings {
         eprintln!("warning: {w}");
     }
-    radbake::output::write_lightmaps(&out, &bake.lightmaps)?;
+    radbake::output::write_lightmaps(&out, &bake.maps.lightmaps)?;
     let stem = scene_path
         .file_stem()
         .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
-    radbake::output::write_engine_outputs(&out, &stem, &scene, &bake.atlas, &bake.lightmaps)?;
+    radbake::output::write_engine_outputs(&out, &stem, &scene, &bake.atlas, &bake.maps.lightmaps)?;
     radbake::output::write_report(&out, &bake.report(&scene_path.display().to_string()))?;
 
     // Per-instance results are plain data.

@@ -35,8 +35,8 @@ fn main() -> anyhow::Result<()> {
         bakes.push(b);
     }
     let (a, b) = (&bakes[0], &bakes[1]);
-    let valid: Vec<usize> = (0..a.lightmaps.texel_values.len())
-        .filter(|&i| a.texel_valid[i] && b.texel_valid[i])
+    let valid: Vec<usize> = (0..a.maps.lightmaps.texel_values.len())
+        .filter(|&i| a.transport.valid[i] && b.transport.valid[i])
         .collect();
     let lum = |v: glam::Vec3| v.element_sum() as f64 / 3.0;
     // Each valid texel's (luminance in bake a, in bake b).
@@ -44,8 +44,8 @@ fn main() -> anyhow::Result<()> {
         .iter()
         .map(|&i| {
             (
-                lum(a.lightmaps.texel_values[i]),
-                lum(b.lightmaps.texel_values[i]),
+                lum(a.maps.lightmaps.texel_values[i]),
+                lum(b.maps.lightmaps.texel_values[i]),
             )
         })
         .collect();

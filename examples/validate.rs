@@ -61,6 +61,7 @@ fn main() -> anyhow::Result<()> {
                     .map_or(f64::NAN, |r| r.mean[0] as f64);
                 let worst = if file == "furnace_box.gltf" {
                     let w = bake
+                        .maps
                         .lightmaps
                         .texel_values
                         .iter()

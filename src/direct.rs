@@ -17,6 +17,7 @@
 //! casts a quarter as many for the first-pass value that the solve and the
 //! gather's hits read, where its extra noise averages out.
 
+use crate::config::EmitterSampling;
 use crate::form_factors::raycast::{Landing, Surfaces};
 use crate::geometry::Geometry;
 use crate::raycast::{Hit, RayCaster};
@@ -207,6 +208,31 @@ pub fn punctual_unoccluded(rays: &RayCaster, origin: Vec3, dir: Vec3, dist: f32)
         f32::INFINITY
     };
     rays.unoccluded(origin, dir, tmax)
+}
+
+/// Which materials' emission is sampled as direct light (per
+/// [`EmitterSampling`]: `auto` samples a material that covers at most 2 %
+/// of the surface); the rest enters the radiosity solve.
+pub fn sampled_materials(scene: &Scene, geometry: &Geometry, mode: EmitterSampling) -> Vec<bool> {
+    let mut area = vec![0.0f64; scene.materials.len()];
+    let mut total = 0.0f64;
+    for (t, &m) in geometry.material.iter().enumerate() {
+        area[m as usize] += geometry.area[t] as f64;
+        total += geometry.area[t] as f64;
+    }
+    scene
+        .materials
+        .iter()
+        .enumerate()
+        .map(|(m, mat)| {
+            mat.is_emissive()
+                && match mode {
+                    EmitterSampling::Direct => true,
+                    EmitterSampling::Radiosity => false,
+                    EmitterSampling::Auto => area[m] <= 0.02 * total,
+                }
+        })
+        .collect()
 }
 
 /// Sample counts of the two emitter estimators, for multiple importance

@@ -21,7 +21,7 @@
 
 use crate::direct::{hemisphere_light, Directional, Lights, Mis};
 use crate::form_factors::raycast::{Landing, Surfaces, TexelSampler};
-use crate::raycast::Hit;
+use crate::raycast::{BatchCaster, Hit};
 use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, Stream};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -143,13 +143,13 @@ pub(crate) struct TexelGather {
 }
 
 /// Everything a texel's gather reads: shared by the CPU gather and the
-/// GPU one (`crate::gpu::gather`), which casts the same rays elsewhere.
+/// batched one ([`Gatherer::gather_batched`], the GPU's), which casts the same rays elsewhere.
 pub struct Gatherer<'a> {
-    pub(crate) s: &'a Surfaces<'a>,
+    s: &'a Surfaces<'a>,
     /// ρ̄ × H₁ per texel: the light a hit on it reflects.
     reflected: Vec<Vec3>,
     sampled: &'a [bool],
-    pub(crate) rays: u32,
+    rays: u32,
     seed: u64,
     extras: Extras,
     direct: Option<(&'a Lights, Mis)>,
@@ -192,8 +192,7 @@ impl<'a> Gatherer<'a> {
     /// Every ray texel `t` may cast, in order (origin off the surface,
     /// direction): what [`Gatherer::texel`] casts, before it stops early
     /// on an invalid texel.
-    #[cfg_attr(not(feature = "preview"), allow(dead_code))]
-    pub(crate) fn rays_of(&self, t: usize, out: &mut [(Vec3, Vec3)]) {
+    fn rays_of(&self, t: usize, out: &mut [(Vec3, Vec3)]) {
         let mut rng = Stream::new(self.seed, PURPOSE, t as u64);
         let strata = rng.permutation(self.rays);
         let sampler = self.s.texel_sampler(t as u32);
@@ -312,7 +311,44 @@ impl<'a> Gatherer<'a> {
     }
 
     /// The texels' gathers, in texel order, as [`Gathered`].
-    pub(crate) fn assemble(&self, texels: impl IntoIterator<Item = TexelGather>) -> Gathered {
+    /// The gather with its rays cast by `caster` (the GPU of `device =
+    /// "gpu"`) in batches: every ray a texel may cast is cast (the CPU
+    /// stops early on texels found invalid), then each texel's gather runs
+    /// on the CPU over those hits, in the same order, so the result is
+    /// [`Gatherer::gather_cpu`]'s.
+    ///
+    /// # Errors
+    /// The caster failed (the caller falls back to [`Gatherer::gather_cpu`]).
+    pub fn gather_batched(
+        &self,
+        caster: &dyn BatchCaster,
+        advance: &(dyn Fn(u64) + Sync),
+    ) -> anyhow::Result<Gathered> {
+        let n = self.s.texels.len();
+        let per = self.rays.max(1) as usize;
+        let mut texels = Vec::with_capacity(n);
+        caster.cast_batches(
+            n,
+            per,
+            &|t, out| self.rays_of(t, out),
+            &mut |items, _, hits| {
+                let start = items.start;
+                let done: Vec<_> = items
+                    .into_par_iter()
+                    .with_min_len(64)
+                    .map(|t| {
+                        let k0 = (t - start) * per;
+                        self.texel(t, |k, _, _| hits[k0 + k as usize])
+                    })
+                    .collect();
+                advance(done.len() as u64);
+                texels.extend(done);
+            },
+        )?;
+        Ok(self.assemble(texels))
+    }
+
+    fn assemble(&self, texels: impl IntoIterator<Item = TexelGather>) -> Gathered {
         let n = self.s.texels.len();
         let mut gathered = Gathered {
             indirect: Vec::with_capacity(n),

@@ -136,6 +136,12 @@ pub fn first_pass(
     values
 }
 
+/// Rings of neighbours an invalid texel is filled from ([`fill_invalid`]):
+/// four patches' width (patches of `patch_texels`²), at least 16 texels.
+pub fn fill_rings(patch_texels: u32) -> u32 {
+    4 * patch_texels.max(4)
+}
+
 /// Replaces every invalid texel (see `gather`'s texel validity) by the mean
 /// of its valid 8-neighbours of the same instance and chart, ring by ring
 /// (up to `rings`), so light from inside walls never shows; an invalid texel

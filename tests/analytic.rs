@@ -39,17 +39,40 @@ fn furnace_box_every_texel_is_two() {
         .as_f64()
         .unwrap() as f32;
     let mut worst = 0.0f32;
-    for v in &bake.lightmaps.texel_values {
+    for v in &bake.maps.lightmaps.texel_values {
         for c in 0..3 {
             worst = worst.max((v[c] - want).abs() / want);
         }
     }
     assert!(worst < 0.01, "worst texel off by {:.3} %", worst * 100.0);
     // A closed cube: every ray lands on a patch, every row of F sums to 1.
-    for (i, s) in bake.row_sums.iter().enumerate() {
+    for (i, s) in bake
+        .transport
+        .patch_light
+        .as_ref()
+        .expect("radiosity")
+        .row_sums
+        .iter()
+        .enumerate()
+    {
         assert!((s - 1.0).abs() < 1e-4, "row {i} sums to {s}");
     }
-    assert_eq!(bake.ff_stats.escaped + bake.ff_stats.unmapped, 0);
+    assert_eq!(
+        bake.transport
+            .patch_light
+            .as_ref()
+            .expect("radiosity")
+            .stats
+            .escaped
+            + bake
+                .transport
+                .patch_light
+                .as_ref()
+                .expect("radiosity")
+                .stats
+                .unmapped,
+        0
+    );
 }
 
 /// Howell C-11: receiver mean = F = 0.199825 within 2 %.
@@ -67,7 +90,14 @@ fn parallel_plates_receiver_mean() {
     );
     assert!((want - analytic::parallel_rectangles(1.0, 1.0, 1.0)).abs() < 1e-9);
     // CSR rows sum to at most 1 (+ rounding).
-    assert!(bake.row_sums.iter().all(|&s| s <= 1.0 + 1e-5));
+    assert!(bake
+        .transport
+        .patch_light
+        .as_ref()
+        .expect("radiosity")
+        .row_sums
+        .iter()
+        .all(|&s| s <= 1.0 + 1e-5));
 }
 
 /// Howell C-14: receiver mean = F = 0.200044 within 2 %.
@@ -180,6 +210,7 @@ fn sphere_furnace() {
     };
     let bake = radbake::bake(&scene, &config, &Silent).unwrap();
     let worst = bake
+        .maps
         .lightmaps
         .texel_values
         .iter()
@@ -214,8 +245,16 @@ fn cornell_box_sane() {
     }
     assert_eq!(bake.texels.chart_overlaps, 0);
     assert_eq!(bake.texels.unmapped_triangles, 0);
-    assert_eq!(bake.ff_stats.unmapped, 0);
-    assert!(bake.lightmaps.pages[0]
+    assert_eq!(
+        bake.transport
+            .patch_light
+            .as_ref()
+            .expect("radiosity")
+            .stats
+            .unmapped,
+        0
+    );
+    assert!(bake.maps.lightmaps.pages[0]
         .iter()
         .all(|v| v.is_finite() && v.min_element() >= 0.0));
     let emitters: Vec<_> = bake
@@ -261,8 +300,10 @@ fn cornell_box_sane() {
     }
     let mut af = vec![vec![0.0f64; n]; n];
     for (i, row) in bake
-        .form_factors
+        .transport
+        .patch_light
         .as_ref()
+        .and_then(|p| p.form_factors.as_ref())
         .unwrap()
         .matrix
         .row_iter()
@@ -308,7 +349,7 @@ fn deterministic_across_thread_counts() {
             .unwrap();
         pool.install(|| {
             let b = radbake::bake(&scene, &BakeConfig::default(), &Silent).unwrap();
-            b.lightmaps.pages.clone()
+            b.maps.lightmaps.pages.clone()
         })
     };
     let one = run(1);

@@ -4,7 +4,7 @@
 //! Needs an adapter; Mesa's lavapipe (software Vulkan, installed by
 //! `.ci/run`) is enough. Where none exists the GPU tests print why and
 //! return; the shader is validated by naga everywhere.
-#![cfg(feature = "preview")]
+#![cfg(feature = "gpu")]
 
 mod common;
 
@@ -12,7 +12,7 @@ use common::scene_path;
 use glam::Vec3;
 use radbake::config::Device;
 use radbake::geometry::Geometry;
-use radbake::gpu::{GpuRayCaster, SHADER};
+use radbake::raycast::gpu::{GpuRayCaster, SHADER};
 use radbake::raycast::RayCaster;
 use radbake::sampling::Stream;
 use radbake::scene::Scene;
@@ -120,15 +120,16 @@ fn assert_gpu_bake_matches_cpu(config: BakeConfig, min_rays: u64) {
         "the GPU path ran: {:?}",
         gpu.warnings
     );
-    assert_eq!(cpu.ff_stats.rays, gpu.ff_stats.rays);
-    assert_eq!(cpu.gather_rays, gpu.gather_rays);
+    assert_eq!(cpu.transport.rays, gpu.transport.rays);
     assert!(
-        gpu.ff_stats.rays >= min_rays,
+        gpu.transport.rays.form_factors >= min_rays,
         "{} rays, wanted at least {min_rays}",
-        gpu.ff_stats.rays
+        gpu.transport.rays.form_factors
     );
-    assert_eq!(cpu.row_sums.len(), gpu.row_sums.len());
-    for (i, (c, g)) in cpu.row_sums.iter().zip(&gpu.row_sums).enumerate() {
+    let row_sums = |b: &radbake::Bake| b.transport.patch_light.as_ref().unwrap().row_sums.clone();
+    let (cpu_rows, gpu_rows) = (row_sums(&cpu), row_sums(&gpu));
+    assert_eq!(cpu_rows.len(), gpu_rows.len());
+    for (i, (c, g)) in cpu_rows.iter().zip(&gpu_rows).enumerate() {
         assert!((c - g).abs() < 1e-3, "row {i}: Σ F CPU {c} GPU {g}");
     }
     for (c, g) in cpu.instance_reports().iter().zip(gpu.instance_reports()) {

@@ -276,7 +276,7 @@ fn fine_checker_furnace() {
         ..BakeConfig::default()
     };
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
-    let values = &bake.lightmaps.texel_values;
+    let values = &bake.maps.lightmaps.texel_values;
     let mean = values.iter().map(|v| v[0]).sum::<f32>() / values.len() as f32;
     // Slivers (texels a face's edge barely enters) are left out of the worst.
     let full = 1.0 / (cfg.texels_per_meter * cfg.texels_per_meter);

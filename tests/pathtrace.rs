@@ -239,9 +239,9 @@ fn final_pass_matches_reference_on_cornell() {
     let rays = RayCaster::new(&scene, &bake.geometry);
     let mut tracer = Tracer::new(&scene, &bake.geometry, &rays, Vec3::ZERO);
     tracer.lightmaps = Some(LightmapLookup {
-        width: bake.lightmaps.width,
-        height: bake.lightmaps.height,
-        pages: &bake.lightmaps.pages,
+        width: bake.maps.lightmaps.width,
+        height: bake.maps.lightmaps.height,
+        pages: &bake.maps.lightmaps.pages,
     });
     let view = View::from_camera(&scene.cameras[0]);
     let fin = render(&tracer, &view, (48, 48), 64, Integrator::Path, 7, &|_| {});
@@ -349,8 +349,8 @@ fn reference_lightmaps_on_cornell() {
     }
     // Same settings, same atlas: texel by texel.
     let (a, b) = (
-        &radiosity.lightmaps.texel_values,
-        &pt.lightmaps.texel_values,
+        &radiosity.maps.lightmaps.texel_values,
+        &pt.maps.lightmaps.texel_values,
     );
     assert_eq!(a.len(), b.len());
     let mean = b.iter().map(|v| v.element_sum() / 3.0).sum::<f32>() / b.len() as f32;
@@ -381,7 +381,7 @@ fn photon_furnace_and_plates() {
         radbake::bake(scene, &config, &Silent).unwrap()
     }
     let furnace = photon(&furnace_scene);
-    let v = &furnace.lightmaps.texel_values;
+    let v = &furnace.maps.lightmaps.texel_values;
     let mean = v.iter().map(|t| t.x).sum::<f32>() / v.len() as f32;
     assert!((mean - 2.0).abs() < 0.04, "furnace mean {mean}");
     let plates = photon(&plates_scene);

@@ -45,7 +45,7 @@ fn final_gather_matches_point_form_factors() {
         let p = bake.texels.p_ws[t] - min;
         let (x, z) = (p.x as f64, p.z as f64);
         let want = analytic::point_to_rectangle(x, z, 1.0, 1.0, 1.0);
-        let got = bake.lightmaps.texel_values[t].x as f64;
+        let got = bake.maps.lightmaps.texel_values[t].x as f64;
         let near_centre = (x - 0.5).abs() < 0.04 && (z - 0.5).abs() < 0.04;
         let near_corner = x < 0.04 && z < 0.04;
         if near_centre || near_corner {
@@ -146,7 +146,7 @@ fn no_light_leaks_through_a_shared_wall() {
             continue;
         }
         let x = bake.texels.p_ws[t].x;
-        let v = bake.lightmaps.texel_values[t].max_element();
+        let v = bake.maps.lightmaps.texel_values[t].max_element();
         if x < 2.0 {
             a_sum += v as f64;
             a_n += 1;
@@ -167,7 +167,7 @@ fn no_light_leaks_through_a_shared_wall() {
         "light leaks into room B: max {b_max} (room A mean {a_mean})"
     );
     assert!(
-        bake.invalid_texels > 0,
+        bake.maps.invalid_texels > 0,
         "the floor under the wall should be found invalid"
     );
 }
@@ -204,12 +204,12 @@ fn seams_are_stitched() {
         ..BakeConfig::default()
     };
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
-    let [before, after] = bake.seam_mismatch;
+    let [before, after] = bake.maps.seam_mismatch;
     eprintln!(
         "{} seam samples: mismatch {before:.5} before, {after:.5} after",
-        bake.seam_samples
+        bake.maps.seam_samples
     );
-    assert!(bake.seam_samples > 100);
+    assert!(bake.maps.seam_samples > 100);
     assert!(
         before > 0.0 && after < 0.2 * before,
         "before {before}, after {after}"
@@ -223,7 +223,7 @@ fn seams_are_stitched() {
         &Silent,
     )
     .unwrap();
-    assert_eq!(unstitched.seam_samples, 0);
+    assert_eq!(unstitched.maps.seam_samples, 0);
 }
 
 /// The denoiser lowers the error of a noisy (32-ray) final gather against a
@@ -258,13 +258,14 @@ fn denoising_reduces_error() {
         )
         .unwrap();
         let se: f64 = b
+            .maps
             .lightmaps
             .texel_values
             .iter()
-            .zip(&reference.lightmaps.texel_values)
+            .zip(&reference.maps.lightmaps.texel_values)
             .map(|(a, r)| ((*a - *r).length_squared() / 3.0) as f64)
             .sum();
-        (se / b.lightmaps.texel_values.len() as f64).sqrt()
+        (se / b.maps.lightmaps.texel_values.len() as f64).sqrt()
     };
     let (noisy, denoised) = (rmse(false), rmse(true));
     eprintln!("RMSE: {noisy:.5} noisy, {denoised:.5} denoised");
@@ -295,7 +296,7 @@ fn directional_lightmaps_under_a_sky() {
         ..BakeConfig::default()
     };
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
-    let sh = bake.sh.as_ref().expect("directional maps");
+    let sh = bake.maps.sh.as_ref().expect("directional maps");
     let mut checked = 0;
     for t in 0..bake.texels.len() {
         let [x, y] = bake.texels.xy[t];
@@ -340,7 +341,7 @@ fn ambient_occlusion() {
             ..BakeConfig::default()
         };
         let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
-        let ao = bake.ao.as_ref().expect("AO pages");
+        let ao = bake.maps.ao.as_ref().expect("AO pages");
         let ids: Vec<usize> = (0..bake.texels.len())
             .filter(|&t| bake.texels.instance[t] == floor)
             .collect();
@@ -392,7 +393,7 @@ fn supersampling_antialiases_shadow_edges() {
         (0..bake.texels.len())
             .filter(|&t| bake.texels.instance[t] == 0)
             .filter(|&t| {
-                let f = bake.lightmaps.texel_values[t].x / lit;
+                let f = bake.maps.lightmaps.texel_values[t].x / lit;
                 f > 0.05 && f < 0.95
             })
             .count()
@@ -469,7 +470,7 @@ fn close_emitter_lights_its_neighbour() {
                 continue;
             }
             let want = analytic::point_to_rectangle(p.x as f64, p.z as f64, 0.2, 0.2, 0.1);
-            let got = bake.lightmaps.texel_values[t].x as f64;
+            let got = bake.maps.lightmaps.texel_values[t].x as f64;
             ratio += got / want;
             assert!(
                 (got - want).abs() / want < tolerance,
@@ -493,9 +494,9 @@ fn direct_means(bake: &radbake::Bake) -> Vec<f64> {
     let n = bake.scene.instances.len();
     let (mut sum, mut count) = (vec![0.0f64; n], vec![0u32; n]);
     for t in 0..bake.texels.len() {
-        if bake.texel_valid[t] {
+        if bake.transport.valid[t] {
             let i = bake.texels.instance[t] as usize;
-            sum[i] += bake.direct[t].element_sum() as f64 / 3.0;
+            sum[i] += bake.transport.direct[t].element_sum() as f64 / 3.0;
             count[i] += 1;
         }
     }
@@ -545,7 +546,7 @@ fn gather_rays_give_the_same_direct_light() {
         let a = radbake::bake(scene, &shared, &Silent).unwrap();
         let b = radbake::bake(scene, &own, &Silent).unwrap();
         assert!(
-            a.direct_rays < b.direct_rays,
+            a.transport.rays.direct < b.transport.rays.direct,
             "the direct pass cast as many rays"
         );
         for (i, (x, y)) in direct_means(&a).iter().zip(direct_means(&b)).enumerate() {
@@ -567,7 +568,7 @@ fn gather_rays_give_the_same_direct_light() {
             for bake in [&a, &b] {
                 let (mut got, mut want, mut count) = (0.0, 0.0, 0);
                 for t in 0..bake.texels.len() {
-                    if bake.texels.instance[t] as usize == plate && bake.texel_valid[t] {
+                    if bake.texels.instance[t] as usize == plate && bake.transport.valid[t] {
                         let p = bake.texels.p_ws[t];
                         let f = analytic::point_to_rectangle(
                             p.x as f64 + 1.0,
@@ -577,7 +578,7 @@ fn gather_rays_give_the_same_direct_light() {
                             0.4,
                         );
                         want += l_sky * (1.0 - f);
-                        got += bake.direct[t].element_sum() as f64 / 3.0;
+                        got += bake.transport.direct[t].element_sum() as f64 / 3.0;
                         count += 1;
                     }
                 }
@@ -729,7 +730,7 @@ fn sun_on_a_corrugated_sheet() {
     };
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
     let want = e * (length * length / surface) / std::f32::consts::PI;
-    let d = &bake.direct;
+    let d = &bake.transport.direct;
     let area: f32 = bake.texels.area.iter().sum();
     let mean = d
         .iter()

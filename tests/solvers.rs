@@ -61,6 +61,7 @@ fn every_method_and_solver_on_the_analytic_scenes() {
             let tag = format!("{method:?}/{solver:?}");
             let b = radbake::bake(&furnace, &cfg, &Silent).unwrap();
             let worst = b
+                .maps
                 .lightmaps
                 .texel_values
                 .iter()
@@ -117,7 +118,14 @@ fn solvers_agree_on_the_same_matrix() {
         ..BakeConfig::default()
     };
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
-    let f = bake.form_factors.as_ref().unwrap();
+    let f = bake
+        .transport
+        .patch_light
+        .as_ref()
+        .expect("radiosity")
+        .form_factors
+        .as_ref()
+        .unwrap();
     let p = &bake.patches;
     let sys = System {
         emission: &p.emission,
@@ -244,7 +252,7 @@ fn texel_check(path: &std::path::Path, want: impl Fn(glam::Vec3) -> f32, tol: f3
     };
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
     let mut worst = 0.0f32;
-    for (t, v) in bake.lightmaps.texel_values.iter().enumerate() {
+    for (t, v) in bake.maps.lightmaps.texel_values.iter().enumerate() {
         let w = want(bake.texels.p_ws[t]);
         let err = if w > 1e-3 {
             (v.x - w).abs() / w
@@ -305,7 +313,7 @@ fn directional_and_spot_lights() {
     };
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
     let (mut inside, mut outside) = (0, 0);
-    for (t, v) in bake.lightmaps.texel_values.iter().enumerate() {
+    for (t, v) in bake.maps.lightmaps.texel_values.iter().enumerate() {
         let p = bake.texels.p_ws[t];
         let r = (p.x * p.x + p.z * p.z).sqrt();
         let theta = r.atan2(h);
@@ -344,7 +352,7 @@ fn sky_over_an_open_plane() {
         ..BakeConfig::default()
     };
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
-    for v in &bake.lightmaps.texel_values {
+    for v in &bake.maps.lightmaps.texel_values {
         for (c, want) in [0.4f32, 0.5, 0.7].into_iter().enumerate() {
             assert!((v[c] - want).abs() / want < 0.005, "{v}");
         }
@@ -406,7 +414,7 @@ fn closed_room_absorbs_what_the_lamp_emits() {
                 std::f64::consts::PI
                     * bake.texels.area[t] as f64
                     * (1.0 - bake.texels.albedo[t].x as f64)
-                    * bake.lightmaps.texel_values[t].x as f64
+                    * bake.maps.lightmaps.texel_values[t].x as f64
             })
             .sum();
         assert!(

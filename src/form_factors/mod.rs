@@ -12,7 +12,7 @@ pub mod hemicube;
 pub mod raycast;
 
 use crate::config::{BakeConfig, FormFactorMethod};
-use crate::solve::ShootingRows;
+use crate::solve::{GatheringRows, ShootingRows};
 use nalgebra_sparse::CsrMatrix;
 use raycast::Surfaces;
 use std::sync::Mutex;
@@ -152,6 +152,12 @@ impl OnDemand<'_> {
             s.add(&st);
         }
         row
+    }
+}
+
+impl GatheringRows for OnDemand<'_> {
+    fn gathering_row(&self, i: usize) -> Vec<(u32, f32)> {
+        self.row(i)
     }
 }
 

@@ -7,11 +7,12 @@
 use super::{FormFactorStats, FormFactors};
 use crate::geometry::Geometry;
 use crate::patches::Patches;
-use crate::raycast::{Hit, RayCaster};
+use crate::raycast::{BatchCaster, Hit, RayCaster};
 use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
 use crate::scene::Scene;
 use crate::texels::Texels;
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 
 /// Stream purpose id of form-factor rays.
 const PURPOSE: u64 = 1;
@@ -296,6 +297,47 @@ pub fn compute(
         |i| row(s, i, rays_per_patch, seed),
         advance,
     )
+}
+
+/// [`compute`] with the rays cast by `caster` (the GPU of `device =
+/// "gpu"`) in batches: the same rays ([`row_rays`]) and the same rows
+/// ([`row_from_hits`]), so the matrix is the CPU's.
+///
+/// # Errors
+/// The caster failed (the caller falls back to [`compute`]).
+pub fn compute_batched(
+    s: &Surfaces,
+    caster: &dyn BatchCaster,
+    rays_per_patch: u32,
+    seed: u64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> anyhow::Result<FormFactors> {
+    let n = s.patches.len();
+    let rpp = rays_per_patch.max(1) as usize;
+    let mut rows = Vec::with_capacity(n);
+    let mut stats = FormFactorStats::default();
+    caster.cast_batches(
+        n,
+        rpp,
+        &|i, out| out.copy_from_slice(&row_rays(s, i, rays_per_patch, seed)),
+        &mut |items, rays, hits| {
+            let start = items.start;
+            let results: Vec<_> = items
+                .into_par_iter()
+                .map(|i| {
+                    let k = (i - start) * rpp..(i - start + 1) * rpp;
+                    let r = row_from_hits(s, &rays[k.clone()], &hits[k]);
+                    advance(1);
+                    r
+                })
+                .collect();
+            for (r, st) in results {
+                stats.add(&st);
+                rows.push(r);
+            }
+        },
+    )?;
+    Ok(FormFactors::from_rows(n, rows, stats))
 }
 
 /// Row i of F, sorted by column.

@@ -203,7 +203,7 @@ pub fn write_extra_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
         source,
     })?;
     let mut written = Vec::new();
-    if let Some(sh) = &bake.sh {
+    if let Some(sh) = &bake.maps.sh {
         for (lm, name) in sh.iter().zip(["a", "x", "y", "z"]) {
             for page in 0..lm.pages.len() {
                 let path = out_dir.join(format!("lightmap_{page}_sh_{name}.exr"));
@@ -212,7 +212,7 @@ pub fn write_extra_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
             }
         }
     }
-    if let Some(ao) = &bake.ao {
+    if let Some(ao) = &bake.maps.ao {
         for page in 0..ao.pages.len() {
             let path = out_dir.join(format!("ao_{page}.png"));
             let img = image::GrayImage::from_fn(ao.width, ao.height, |x, y| {
@@ -238,7 +238,7 @@ pub fn write_extra_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
 /// # Errors
 /// [`Error::Encode`] or [`Error::Io`].
 pub fn write_debug_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBuf>> {
-    let lm = &bake.lightmaps;
+    let lm = &bake.maps.lightmaps;
     let texels = &bake.texels;
     let mut patch_of = vec![u32::MAX; texels.len()];
     for i in 0..bake.patches.len() {
@@ -260,7 +260,7 @@ pub fn write_debug_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
             h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
             h ^= h >> 31;
             let c = |k: u32| 64 + ((h >> (8 * k)) & 0xff) as u8 / 4 * 3;
-            let alpha = if bake.texel_valid.get(t).copied().unwrap_or(true) {
+            let alpha = if bake.transport.valid.get(t).copied().unwrap_or(true) {
                 255
             } else {
                 128

@@ -17,6 +17,8 @@ pub mod model;
 pub mod renderer;
 pub mod window;
 
+pub use crate::adapter::{describe, device, instance, offscreen_device, NoAdapter};
+
 use anyhow::{anyhow, bail, Context as _, Result};
 use camera::Camera;
 use glam::Vec3;
@@ -145,12 +147,6 @@ pub struct Options {
     pub settings: Settings,
 }
 
-/// No usable graphics adapter (GPU or software): callers may treat this as
-/// "cannot run here" rather than as a failure.
-#[derive(Debug, thiserror::Error)]
-#[error("no graphics adapter: {0}")]
-pub struct NoAdapter(pub String);
-
 /// Picks the first viewpoint for `model` in an image of `aspect`.
 pub fn initial_camera(model: &Model, viewpoint: &Viewpoint) -> Result<Camera> {
     let (lo, hi) = model.bounds;
@@ -190,66 +186,6 @@ pub fn initial_camera(model: &Model, viewpoint: &Viewpoint) -> Result<Camera> {
             None => Camera::frame(lo, hi, default_fov),
         },
     })
-}
-
-/// A wgpu instance for `backends` (overridden by `WGPU_BACKEND` and the
-/// other wgpu environment variables), optionally tied to a display
-/// connection (needed by GL for windows).
-pub fn instance(
-    backends: wgpu::Backends,
-    display: Option<Box<dyn wgpu::wgt::WgpuHasDisplayHandle>>,
-) -> wgpu::Instance {
-    let mut desc = match display {
-        Some(d) => wgpu::InstanceDescriptor::new_with_display_handle(d),
-        None => wgpu::InstanceDescriptor::new_without_display_handle(),
-    };
-    desc.backends = backends;
-    wgpu::Instance::new(desc.with_env())
-}
-
-/// An adapter compatible with `surface` (hardware first, any software one
-/// otherwise) and its device.
-pub fn device(
-    instance: &wgpu::Instance,
-    surface: Option<&wgpu::Surface<'_>>,
-) -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue)> {
-    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-        power_preference: wgpu::PowerPreference::HighPerformance,
-        force_fallback_adapter: false,
-        compatible_surface: surface,
-        ..Default::default()
-    }))
-    .map_err(|e| {
-        NoAdapter(format!(
-            "{e} (install a GPU driver, or Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1)"
-        ))
-    })?;
-    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-        label: Some("radbake preview"),
-        required_limits: adapter.limits(),
-        ..Default::default()
-    }))
-    .context("cannot create the GPU device")?;
-    Ok((adapter, device, queue))
-}
-
-/// A device for offscreen rendering: Vulkan/Metal/DX12 first, GL only when
-/// none of those has an adapter (GL's EGL probing is noisy without a
-/// display); `WGPU_BACKEND` overrides.
-pub fn offscreen_device() -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue)> {
-    let primary = device(&instance(wgpu::Backends::PRIMARY, None), None);
-    match primary {
-        Err(e) if e.is::<NoAdapter>() && std::env::var_os("WGPU_BACKEND").is_none() => {
-            device(&instance(wgpu::Backends::GL, None), None)
-        }
-        r => r,
-    }
-}
-
-/// One-line adapter description.
-pub fn describe(adapter: &wgpu::Adapter) -> String {
-    let info = adapter.get_info();
-    format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
 }
 
 /// Writes RGBA8 rows as a PNG, atomically (temporary file + rename).

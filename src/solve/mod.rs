@@ -54,6 +54,14 @@ pub trait ShootingRows: Sync {
     fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32);
 }
 
+/// Rows of F for gathering: `gathering_row(i)` lists (j, Fᵢⱼ), the row
+/// itself (progressive refinement's closing sweeps,
+/// [`progressive::gather_sweeps`]).
+pub trait GatheringRows: Sync {
+    /// Row i of F.
+    fn gathering_row(&self, i: usize) -> Vec<(u32, f32)>;
+}
+
 /// The solved radiosity system.
 #[derive(Clone, Debug, Default)]
 pub struct Solution {

@@ -5,11 +5,12 @@
 //! stored matrix's column) and distribute: ΔHⱼ = Sᵢⱼ ΔLᵢ, Hⱼ += ΔHⱼ,
 //! ΔLⱼ += ρⱼ ΔHⱼ. Nothing n × n is kept: memory is O(n) plus a row cache of
 //! fixed size (a patch is typically shot many times). Stops when the unshot
-//! power falls below `tolerance` × the initial power. (The bake then
-//! gathers at every patch from its own row; see `radbake::bake`.)
+//! power falls below `tolerance` × the initial power. [`gather_sweeps`]
+//! then gathers at every patch from its own row.
 
-use super::{ShootingRows, Solution, System};
+use super::{GatheringRows, ShootingRows, Solution, System};
 use glam::Vec3;
+use rayon::prelude::*;
 use std::collections::HashMap;
 
 /// Result of a progressive solve.
@@ -174,6 +175,40 @@ pub fn solve(
         },
         row_sums,
     }
+}
+
+/// Gathering sweeps that complete a progressive solution: `sweeps` times,
+/// every patch gathers from its own row, L ← E + ρ (D + F L). Shooting
+/// scales a shooter's row by Aᵢ/Aⱼ (reciprocity), which is noisy for small
+/// receivers (and biased for the hemicube's point-sampled rows); each sweep
+/// puts the accuracy back on the receiving side (dividing the shooting
+/// error by ~1/ρ). Rows are made and dropped, so memory stays O(n).
+/// Returns Σⱼ Fᵢⱼ per patch (every patch's row is computed).
+pub fn gather_sweeps(
+    rows: &dyn GatheringRows,
+    sys: &System,
+    solution: &mut Solution,
+    sweeps: u32,
+) -> Vec<f32> {
+    let mut gathered: Vec<(Vec3, f32)> = Vec::new();
+    for _ in 0..sweeps {
+        gathered = (0..sys.len())
+            .into_par_iter()
+            .map(|j| {
+                let row = rows.gathering_row(j);
+                let h = row
+                    .iter()
+                    .map(|&(k, f)| solution.radiance[k as usize] * f)
+                    .sum::<Vec3>();
+                (sys.direct[j] + h, row.iter().map(|e| e.1).sum())
+            })
+            .collect();
+        solution.irradiance = gathered.iter().map(|g| g.0).collect();
+        solution.radiance = (0..sys.len())
+            .map(|j| sys.emission[j] + sys.albedo[j] * solution.irradiance[j])
+            .collect();
+    }
+    gathered.iter().map(|g| g.1).collect()
 }
 
 #[cfg(test)]

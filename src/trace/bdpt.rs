@@ -457,7 +457,7 @@ impl<'t, 'a> Bdpt<'t, 'a> {
     /// in and divided by the samples per pixel (PBRT's splat film).
     pub fn radiance(
         &self,
-        view: &super::render::View,
+        view: &super::view::View,
         aspect: f32,
         dir: Vec3,
         rng: &mut Stream,

@@ -20,6 +20,7 @@
 
 pub mod bdpt;
 pub mod render;
+pub mod view;
 
 use crate::direct::{punctual_irradiance, punctual_unoccluded, Lights};
 use crate::geometry::Geometry;

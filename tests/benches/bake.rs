@@ -16,7 +16,7 @@ fn bake(c: &mut Criterion) {
             let scene = radbake::scene::load(black_box(&path), &Default::default())
                 .expect("the Cornell box loads");
             let bake = radbake::bake(&scene, &config, &radbake::Silent).expect("it bakes");
-            black_box(bake.lightmaps.texel_values.len())
+            black_box(bake.maps.lightmaps.texel_values.len())
         })
     });
 }

@@ -16,14 +16,30 @@ fn final_gather(c: &mut Criterion) {
     let rays = RayCaster::new(&scene, &bake.geometry);
     let s = common::surfaces(&scene, &bake, &rays);
     let indirect: Vec<Vec3> = bake
+        .transport
+        .patch_light
+        .as_ref()
+        .expect("radiosity")
         .solution
         .irradiance
         .iter()
-        .zip(&bake.patch_direct)
+        .zip(
+            &bake
+                .transport
+                .patch_light
+                .as_ref()
+                .expect("radiosity")
+                .direct,
+        )
         .map(|(h, d)| *h - *d)
         .collect();
-    let first = lightmap::first_pass(&bake.texels, &bake.patches, &bake.direct, &indirect);
-    let sampled = radbake::direct_sampled_materials(&scene, &bake.geometry, bake.config.emitters);
+    let first = lightmap::first_pass(
+        &bake.texels,
+        &bake.patches,
+        &bake.transport.direct,
+        &indirect,
+    );
+    let sampled = radbake::direct::sampled_materials(&scene, &bake.geometry, bake.config.emitters);
     // As the bake does: the gather rays also estimate the direct light's
     // hemisphere part (sky, emitters by MIS).
     let lights = direct::Lights::new(

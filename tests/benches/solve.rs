@@ -17,10 +17,22 @@ fn solve(c: &mut Criterion) {
     let system = System {
         emission: &emission,
         albedo: &bake.patches.albedo,
-        direct: &bake.patch_direct,
+        direct: &bake
+            .transport
+            .patch_light
+            .as_ref()
+            .expect("radiosity")
+            .direct,
         area: &bake.patches.area,
     };
-    let ff = bake.form_factors.as_ref().expect("Jacobi stores F");
+    let ff = bake
+        .transport
+        .patch_light
+        .as_ref()
+        .expect("radiosity")
+        .form_factors
+        .as_ref()
+        .expect("Jacobi stores F");
     let (tolerance, max) = (bake.config.tolerance, bake.config.max_iterations);
     let mut group = c.benchmark_group("solve_cornell");
 

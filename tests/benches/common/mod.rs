@@ -206,7 +206,7 @@ pub fn surfaces<'a>(
 /// light are left out, as `radbake::bake` does).
 pub fn solve_emission(bake: &radbake::Bake) -> Vec<Vec3> {
     let sampled =
-        radbake::direct_sampled_materials(bake.scene, &bake.geometry, bake.config.emitters);
+        radbake::direct::sampled_materials(bake.scene, &bake.geometry, bake.config.emitters);
     (0..bake.patches.len())
         .map(|i| {
             let t = bake.patches.texels_of(i)[0] as usize;

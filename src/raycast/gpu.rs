@@ -1,30 +1,30 @@
-//! `--device gpu`: closest-hit ray casting in a wgpu compute shader
-//! (`shaders/raycast.wgsl`) over a binary BVH (obvhs PLOC `Bvh2`),
-//! "wavefront" style: rays are generated on the CPU by the very sampling
-//! code of the CPU path, cast in large batches on the GPU, and their hits
-//! turned into patches on the CPU. Form factors use it (the bake's most
-//! ray-heavy stage before the final gather); both devices cast the same
-//! rays, so their lightmaps agree up to floating-point ties.
+//! `--device gpu` (feature `gpu`): closest-hit ray casting in a wgpu
+//! compute shader (`shaders/raycast.wgsl`) over a binary BVH (obvhs PLOC
+//! `Bvh2`), "wavefront" style: rays are generated on the CPU by the very
+//! sampling code of the CPU path, cast in large batches on the GPU, and
+//! their hits handed back in order ([`GpuBatches`], a [`BatchCaster`]).
+//! Ray-cast form factors and the final gather use it (the bake's most
+//! ray-heavy stages); both devices cast the same rays, so their lightmaps
+//! agree up to floating-point ties.
 //!
 //! Cut-out (alpha-masked) triangles are tested on the CPU: a ray whose GPU
 //! hit is masked is re-cast there. BVHs deeper than the shader's stack are
 //! refused (the caller falls back to the CPU).
 
-use crate::form_factors::raycast::{row_from_hits, row_rays, Surfaces};
-use crate::form_factors::{FormFactorStats, FormFactors};
-use crate::gather::{Gathered, Gatherer};
+use super::{BatchCaster, Consume, Generate, Hit, RayCaster};
 use crate::geometry::Geometry;
-use crate::raycast::Hit;
+use crate::scene::{Alpha, Scene};
 use anyhow::{anyhow, bail, Context as _, Result};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use obvhs::BvhBuildParams;
 use rayon::prelude::*;
+use std::ops::Range;
 use std::time::Duration;
 use wgpu::util::DeviceExt as _;
 
 /// The compute shader.
-pub const SHADER: &str = include_str!("../shaders/raycast.wgsl");
+pub const SHADER: &str = include_str!("../../shaders/raycast.wgsl");
 
 /// Traversal stack depth of the shader.
 const STACK: usize = 64;
@@ -91,9 +91,9 @@ impl GpuRayCaster {
         if geometry.is_empty() {
             bail!("no triangles");
         }
-        let (adapter, device, queue) = crate::preview::offscreen_device()?;
+        let (adapter, device, queue) = crate::adapter::offscreen_device()?;
         let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(
-            &crate::raycast::obvhs_triangles(geometry),
+            &super::obvhs_triangles(geometry),
             BvhBuildParams::medium_build(),
             &mut Duration::default(),
         );
@@ -201,7 +201,7 @@ impl GpuRayCaster {
             usage: wgpu::BufferUsages::STORAGE,
         });
         Ok(GpuRayCaster {
-            adapter: crate::preview::describe(&adapter),
+            adapter: crate::adapter::describe(&adapter),
             device,
             queue,
             pipeline,
@@ -451,192 +451,112 @@ fn gpu_ray(o: Vec3, d: Vec3) -> GpuRay {
     }
 }
 
-/// Casts the rays of `count` items (patches, texels), `per_item` rays each,
-/// in batches of about 2²⁰ rays, pipelined over two buffer slots: while the
-/// GPU casts batch k, the CPU generates batch k + 1 (`generate`: the
-/// batch's rays in the shader's layout, `per_item` per item in item order,
-/// and whatever else `consume` needs) and, once that is submitted, hands
-/// batch k's hits to `consume`. Batches are consumed in order, so results
-/// do not depend on the timing.
-fn pipelined<T>(
-    gpu: &GpuRayCaster,
-    count: usize,
-    per_item: usize,
-    generate: impl Fn(std::ops::Range<usize>) -> (T, Vec<GpuRay>),
-    mut consume: impl FnMut(std::ops::Range<usize>, T, &[GpuHit]),
-) -> Result<()> {
-    let per_item = per_item.max(1);
-    let per_batch = (BATCH / per_item).max(1);
-    let batches: Vec<std::ops::Range<usize>> = (0..count)
-        .step_by(per_batch)
-        .map(|a| a..(a + per_batch).min(count))
-        .collect();
-    let Some(first) = batches.first() else {
-        return Ok(());
-    };
-    let capacity = per_batch.min(count) * per_item;
-    let slots = [gpu.slot(capacity), gpu.slot(capacity)];
-    let (mut data, flat) = generate(first.clone());
-    let mut pending = Some(gpu.submit(&slots[0], &flat));
-    for (b, range) in batches.iter().enumerate() {
-        let next = batches.get(b + 1).map(|r| generate(r.clone()));
-        let this = pending
-            .take()
-            .ok_or_else(|| anyhow!("batch {b} was not submitted"))?;
-        let hits = gpu
-            .wait(&slots[b % 2], this)
-            .context("GPU ray casting failed")?;
-        let mut next_data = None;
-        if let Some((d, next_flat)) = next {
-            pending = Some(gpu.submit(&slots[(b + 1) % 2], &next_flat));
-            next_data = Some(d);
-        }
-        consume(range.clone(), data, &hits);
-        match next_data {
-            Some(d) => data = d,
-            None => break,
-        }
-    }
-    Ok(())
+/// The GPU caster of a bake: [`GpuRayCaster`] with the CPU's caster for
+/// the hits it cannot judge (cut-out triangles), as a [`BatchCaster`].
+pub struct GpuBatches<'a> {
+    gpu: GpuRayCaster,
+    cpu: &'a RayCaster,
+    /// Per global triangle: alpha-masked (its GPU hits are re-cast on the CPU)?
+    masked: Vec<bool>,
 }
 
-/// A GPU hit, re-cast on the CPU where it landed on a cut-out (alpha-masked)
-/// triangle, whose texture the shader does not test.
-fn resolve_hit(
-    s: &Surfaces,
-    gpu: &GpuRayCaster,
-    masked: &[bool],
-    h: &GpuHit,
-    o: Vec3,
-    d: Vec3,
-) -> Option<Hit> {
-    match gpu.hit(h) {
-        Some(hit) if masked[s.geometry.material[hit.tri as usize] as usize] => {
-            s.rays.closest_hit(o, d, f32::INFINITY)
+impl<'a> GpuBatches<'a> {
+    /// The GPU caster over `geometry`, re-casting on `cpu` the hits on
+    /// `scene`'s alpha-masked triangles.
+    ///
+    /// # Errors
+    /// As [`GpuRayCaster::new`].
+    pub fn new(scene: &Scene, geometry: &Geometry, cpu: &'a RayCaster) -> Result<Self> {
+        let gpu = GpuRayCaster::new(geometry)?;
+        let masked = geometry
+            .material
+            .iter()
+            .map(|&m| matches!(scene.materials[m as usize].alpha, Alpha::Mask { .. }))
+            .collect();
+        Ok(GpuBatches { gpu, cpu, masked })
+    }
+
+    /// A GPU hit, re-cast on the CPU where it landed on a cut-out
+    /// (alpha-masked) triangle, whose texture the shader does not test.
+    fn resolve(&self, h: &GpuHit, (o, d): (Vec3, Vec3)) -> Option<Hit> {
+        match self.gpu.hit(h) {
+            Some(hit) if self.masked[hit.tri as usize] => self.cpu.closest_hit(o, d, f32::INFINITY),
+            other => other,
         }
-        other => other,
+    }
+
+    /// A batch's rays, generated on the CPU, in the shader's layout.
+    fn generate(&self, items: Range<usize>, per_item: usize, generate: &Generate) -> Batch {
+        let mut rays = vec![(Vec3::ZERO, Vec3::ZERO); items.len() * per_item];
+        rays.par_chunks_mut(per_item)
+            .zip(items.clone())
+            .for_each(|(out, i)| generate(i, out));
+        let flat = rays.par_iter().map(|&(o, d)| gpu_ray(o, d)).collect();
+        Batch { items, rays, flat }
     }
 }
 
-/// Per material: alpha-masked?
-fn masked_materials(s: &Surfaces) -> Vec<bool> {
-    s.scene
-        .materials
-        .iter()
-        .map(|m| matches!(m.alpha, crate::scene::Alpha::Mask { .. }))
-        .collect()
+/// One batch of [`BatchCaster::cast_batches`] on its way to the GPU.
+struct Batch {
+    items: Range<usize>,
+    rays: Vec<(Vec3, Vec3)>,
+    flat: Vec<GpuRay>,
 }
 
-/// Form factors by ray casting with the rays cast on the GPU: the rows of
-/// [`crate::form_factors::raycast::compute`], rays generated and hits
-/// counted on the CPU, [`pipelined`].
-///
-/// # Errors
-/// GPU failures (the caller falls back to the CPU).
-pub fn form_factors(
-    s: &Surfaces,
-    gpu: &GpuRayCaster,
-    rays_per_patch: u32,
-    seed: u64,
-    advance: &(dyn Fn(u64) + Sync),
-) -> Result<FormFactors> {
-    let n = s.patches.len();
-    let rpp = rays_per_patch.max(1) as usize;
-    let masked = masked_materials(s);
-    let mut rows = Vec::with_capacity(n);
-    let mut stats = FormFactorStats::default();
-    pipelined(
-        gpu,
-        n,
-        rpp,
-        |range| {
-            let rays: Vec<Vec<(Vec3, Vec3)>> = range
-                .into_par_iter()
-                .map(|i| row_rays(s, i, rays_per_patch, seed))
-                .collect();
-            let mut flat = vec![GpuRay::zeroed(); rays.len() * rpp];
-            flat.par_chunks_mut(rpp).zip(&rays).for_each(|(out, row)| {
-                for (g, &(o, d)) in out.iter_mut().zip(row) {
-                    *g = gpu_ray(o, d);
-                }
-            });
-            (rays, flat)
-        },
-        |range, rays, hits| {
-            let results: Vec<_> = range
-                .clone()
-                .into_par_iter()
-                .map(|i| {
-                    let k0 = (i - range.start) * rpp;
-                    let row = &rays[i - range.start];
-                    let row_hits: Vec<Option<Hit>> = hits[k0..k0 + rpp]
-                        .iter()
-                        .zip(row)
-                        .map(|(h, &(o, d))| resolve_hit(s, gpu, &masked, h, o, d))
-                        .collect();
-                    let r = row_from_hits(s, row, &row_hits);
-                    advance(1);
-                    r
-                })
-                .collect();
-            for (r, st) in results {
-                stats.add(&st);
-                rows.push(r);
+impl BatchCaster for GpuBatches<'_> {
+    fn describe(&self) -> &str {
+        &self.gpu.adapter
+    }
+
+    /// In batches of about 2²⁰ rays, pipelined over two buffer slots: while
+    /// the GPU casts batch k, the CPU generates batch k + 1 and, once that
+    /// is submitted, hands batch k's hits to `consume`. Batches are
+    /// consumed in order, so results do not depend on the timing.
+    fn cast_batches(
+        &self,
+        count: usize,
+        per_item: usize,
+        generate: &Generate,
+        consume: &mut Consume,
+    ) -> Result<()> {
+        let per_item = per_item.max(1);
+        let per_batch = (BATCH / per_item).max(1);
+        let batches: Vec<Range<usize>> = (0..count)
+            .step_by(per_batch)
+            .map(|a| a..(a + per_batch).min(count))
+            .collect();
+        let Some(first) = batches.first() else {
+            return Ok(());
+        };
+        let capacity = per_batch.min(count) * per_item;
+        let slots = [self.gpu.slot(capacity), self.gpu.slot(capacity)];
+        let mut batch = self.generate(first.clone(), per_item, generate);
+        let mut pending = Some(self.gpu.submit(&slots[0], &batch.flat));
+        for b in 0..batches.len() {
+            let next = batches
+                .get(b + 1)
+                .map(|r| self.generate(r.clone(), per_item, generate));
+            let this = pending
+                .take()
+                .ok_or_else(|| anyhow!("batch {b} was not submitted"))?;
+            let hits = self
+                .gpu
+                .wait(&slots[b % 2], this)
+                .context("GPU ray casting failed")?;
+            if let Some(n) = &next {
+                pending = Some(self.gpu.submit(&slots[(b + 1) % 2], &n.flat));
             }
-        },
-    )?;
-    Ok(FormFactors::from_rows(n, rows, stats))
-}
-
-/// The final gather ([`crate::gather::gather`]) with its rays cast on the
-/// GPU, [`pipelined`]: every ray a texel may cast is cast (the CPU stops
-/// early on texels found invalid), then each texel's gather runs on the CPU
-/// over those hits, in the same order, so the result is the CPU's.
-///
-/// # Errors
-/// GPU failures (the caller falls back to the CPU).
-pub(crate) fn gather(
-    gatherer: &Gatherer,
-    gpu: &GpuRayCaster,
-    advance: &(dyn Fn(u64) + Sync),
-) -> Result<Gathered> {
-    let s = gatherer.s;
-    let n = s.texels.len();
-    let per = gatherer.rays.max(1) as usize;
-    let masked = masked_materials(s);
-    let mut texels = Vec::with_capacity(n);
-    pipelined(
-        gpu,
-        n,
-        per,
-        |range| {
-            let mut flat = vec![GpuRay::zeroed(); range.len() * per];
-            flat.par_chunks_mut(per).zip(range).for_each_init(
-                || vec![(Vec3::ZERO, Vec3::ZERO); per],
-                |rays, (out, t)| {
-                    gatherer.rays_of(t, rays);
-                    for (g, &(o, d)) in out.iter_mut().zip(rays.iter()) {
-                        *g = gpu_ray(o, d);
-                    }
-                },
-            );
-            ((), flat)
-        },
-        |range, (), hits| {
-            let start = range.start;
-            let done: Vec<_> = range
-                .into_par_iter()
-                .with_min_len(64)
-                .map(|t| {
-                    let k0 = (t - start) * per;
-                    gatherer.texel(t, |k, o, d| {
-                        resolve_hit(s, gpu, &masked, &hits[k0 + k as usize], o, d)
-                    })
-                })
+            let hits: Vec<Option<Hit>> = hits
+                .par_iter()
+                .zip(&batch.rays)
+                .map(|(h, &ray)| self.resolve(h, ray))
                 .collect();
-            advance(done.len() as u64);
-            texels.extend(done);
-        },
-    )?;
-    Ok(gatherer.assemble(texels))
+            consume(batch.items.clone(), &batch.rays, &hits);
+            match next {
+                Some(n) => batch = n,
+                None => break,
+            }
+        }
+        Ok(())
+    }
 }

@@ -1,0 +1,346 @@
+//! `radbake bake`: settings from defaults < preset < config file < flags,
+//! the up-to-date check, the bake, and its outputs written atomically.
+
+use super::progress::{Bars, JsonProgress};
+use super::{classify, lib_err, parse_rgb, Outcome};
+use anyhow::Context as _;
+use clap::Args;
+use radbake::config::{
+    DirectionalMode, EmitterSampling, FormFactorMethod, Method, Packing, Preset, Solver, UvSource,
+};
+use radbake::report::StageTime;
+use radbake::BakeConfig;
+use std::path::PathBuf;
+use std::sync::Mutex;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct BakeArgs {
+    /// The scene (.gltf or .glb).
+    pub scene: PathBuf,
+    /// Output folder (created if missing): lightmap_<page>.exr/.png, report.json.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Settings file (TOML, keys as in report.json's "settings"); flags override it.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Lightmap texels per metre [default: 116].
+    #[arg(long)]
+    pub texels_per_meter: Option<f32>,
+    /// Empty texels around each chart [default: 4].
+    #[arg(long)]
+    pub padding: Option<u32>,
+    /// Patch size k: patches are k×k texel blocks [default: 4].
+    #[arg(long)]
+    pub patch_texels: Option<u32>,
+    /// Form-factor rays per patch [default: 1024].
+    #[arg(long)]
+    pub rays_per_patch: Option<u32>,
+    /// Solver stops when the relative change of radiance is below this [default: 1e-4].
+    #[arg(long)]
+    pub tolerance: Option<f32>,
+    /// Solver iteration limit [default: 200].
+    #[arg(long)]
+    pub max_iterations: Option<u32>,
+    /// Lightmap UVs: unwrap, or repack the input's TEXCOORD_1 [default: unwrap].
+    #[arg(long, value_enum)]
+    pub uv: Option<UvSource>,
+    /// Chart packing: fast (rows), or shape (nested shapes, slower) [default: fast].
+    #[arg(long, value_enum)]
+    pub packing: Option<Packing>,
+    /// Form-factor method [default: raycast].
+    #[arg(long, value_enum)]
+    pub form_factors: Option<FormFactorMethod>,
+    /// Hemicube top-face resolution in pixels [default: 128].
+    #[arg(long)]
+    pub hemicube_resolution: Option<u32>,
+    /// Solver [default: jacobi].
+    #[arg(long, value_enum)]
+    pub solver: Option<Solver>,
+    /// Largest patch count the direct solver accepts [default: 4096].
+    #[arg(long)]
+    pub direct_max_patches: Option<u32>,
+    /// Seed of all random sequences [default: 24301].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Texel budget: where the scene would need more texels, the density is lowered to fit [default: 1048576; preview 262144, production 4194304].
+    #[arg(long)]
+    pub max_texels: Option<u64>,
+    /// Direct-light samples per texel (emitter samples and hemisphere rays each) [default: 64].
+    #[arg(long)]
+    pub direct_samples: Option<u32>,
+    /// Sky radiance `r,g,b` (W·sr⁻¹·m⁻², linear) seen by rays leaving the scene [default: 0,0,0].
+    #[arg(long, value_parser = parse_rgb)]
+    pub sky: Option<[f32; 3]>,
+    /// Directional lightmaps: `sh` writes L1 spherical-harmonic pages [default: none].
+    #[arg(long, value_enum)]
+    pub directional: Option<DirectionalMode>,
+    /// Write an ambient-occlusion map for occluders within this distance (metres) [default: off].
+    #[arg(long = "ao", value_name = "METRES")]
+    pub ao_distance: Option<f32>,
+    /// Evaluate punctual lights at s × s points per texel (antialiased shadow edges) [default: 1].
+    #[arg(long)]
+    pub supersample: Option<u32>,
+    /// Denoise the gathered indirect light (edge-aware à-trous): true or false [default: true].
+    #[arg(long)]
+    pub denoise: Option<bool>,
+    /// Stitch UV seams of continuous surfaces: true or false [default: true].
+    #[arg(long)]
+    pub stitch_seams: Option<bool>,
+    /// Final-gather rays per texel; 0 turns the final gather off [default: 128].
+    #[arg(long)]
+    pub final_gather: Option<u32>,
+    /// Emissive surfaces: sampled per texel (`direct`), through the radiosity solve (`radiosity`),
+    /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
+    #[arg(long, value_enum)]
+    pub emitters: Option<EmitterSampling>,
+    /// Where form-factor rays are cast: cpu, or gpu (wgpu compute; CPU fallback with a warning) [default: cpu].
+    #[arg(long, value_enum)]
+    pub device: Option<radbake::config::Device>,
+    /// Light transport: radiosity, or the pathtrace / photon references [default: radiosity].
+    #[arg(long, value_enum)]
+    pub method: Option<Method>,
+    /// Paths per texel with --method pathtrace [default: 1024].
+    #[arg(long)]
+    pub path_samples: Option<u32>,
+    /// Photons emitted with --method photon [default: 1048576].
+    #[arg(long)]
+    pub photons: Option<u64>,
+    /// Nearest photons per estimate with --method photon [default: 128].
+    #[arg(long)]
+    pub photon_neighbours: Option<u32>,
+    /// Also write lightmap_<page>_debug.png (patches, texel validity) for the preview's debug views.
+    #[arg(long)]
+    pub debug_maps: bool,
+    /// Starting settings, below the config file and flags [default: medium].
+    #[arg(long, value_enum)]
+    pub preset: Option<Preset>,
+    /// Refuse scenes whose estimated bake memory exceeds this many megabytes (checked before reading geometry).
+    #[arg(long, value_name = "MB")]
+    pub max_memory: Option<u64>,
+    /// Give up after this many seconds (exit code 3, temporaries removed).
+    #[arg(long, value_name = "SECONDS")]
+    pub timeout: Option<f64>,
+    /// Bake even if the outputs are up to date.
+    #[arg(long)]
+    pub force: bool,
+    /// Progress: `bars` (on a terminal) or `json` (one object per line on stderr).
+    #[arg(long, value_enum, default_value = "bars")]
+    pub progress: ProgressMode,
+    /// Print nothing but errors.
+    #[arg(long, short, conflicts_with = "verbose")]
+    pub quiet: bool,
+    /// Also print per-stage times and counters.
+    #[arg(long, short)]
+    pub verbose: bool,
+    /// After the bake, print a table of per-stage times, rays, rays/s and peak memory (stderr).
+    #[arg(long)]
+    pub stats: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ProgressMode {
+    Bars,
+    Json,
+}
+
+impl BakeArgs {
+    /// Defaults < preset < config file < flags.
+    fn config(&self) -> anyhow::Result<BakeConfig> {
+        let base = BakeConfig::preset(self.preset.unwrap_or(Preset::Medium));
+        let mut c = match &self.config {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("cannot read config {}", path.display()))?;
+                BakeConfig::from_toml_over(&base, &text)?
+            }
+            None => base,
+        };
+        macro_rules! set {
+            ($($f:ident),*) => { $( if let Some(v) = self.$f { c.$f = v; } )* };
+        }
+        set!(
+            texels_per_meter,
+            padding,
+            patch_texels,
+            rays_per_patch,
+            tolerance,
+            max_iterations,
+            uv,
+            packing,
+            form_factors,
+            hemicube_resolution,
+            solver,
+            direct_max_patches,
+            seed,
+            max_texels,
+            direct_samples,
+            sky,
+            emitters,
+            final_gather,
+            stitch_seams,
+            denoise,
+            directional,
+            ao_distance,
+            supersample,
+            method,
+            path_samples,
+            photons,
+            photon_neighbours,
+            device
+        );
+        if self.debug_maps {
+            c.debug_maps = true;
+        }
+        c.validate()?;
+        Ok(c)
+    }
+}
+
+/// Bakes `args.scene` into `args.out`, unless the outputs are up to date.
+pub fn run(args: &BakeArgs) -> Outcome {
+    let config = args
+        .config()
+        .map_err(|e| (classify(&e), format!("{e:#}")))?;
+    remove_temporaries_on_exit(args);
+    let start = Instant::now();
+    let load_options = radbake::scene::LoadOptions {
+        max_memory: args.max_memory.map(|mb| mb.saturating_mul(1 << 20)),
+        ..Default::default()
+    };
+    let scene = radbake::scene::load(&args.scene, &load_options).map_err(lib_err)?;
+    let import = StageTime {
+        stage: "import".into(),
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    let stem = args
+        .scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    let hash = radbake::incremental::content_hash(&scene, &config);
+    if !args.force && up_to_date(args, &stem, &hash) {
+        return Ok(());
+    }
+    let progress: Box<dyn radbake::Progress> = match args.progress {
+        ProgressMode::Json => Box::new(JsonProgress {
+            state: Mutex::new((String::new(), 0, 0, Instant::now(), Instant::now())),
+        }),
+        ProgressMode::Bars => Box::new(Bars {
+            bar: Mutex::new(None),
+            hidden: args.quiet,
+        }),
+    };
+    // Errors from the bake's stages name what is wrong but not the file.
+    let bake = radbake::bake(&scene, &config, progress.as_ref()).map_err(|e| {
+        let (code, message) = lib_err(e);
+        (code, format!("{}: {message}", args.scene.display()))
+    })?;
+    let mut report = bake.report(&args.scene.display().to_string());
+    report.stages.insert(0, import);
+    let written = write_outputs(args, &stem, &bake, &mut report)?;
+    radbake::incremental::record(&args.out, &hash).map_err(lib_err)?;
+    print_summary(args, &report, start, written.len());
+    Ok(())
+}
+
+/// Ctrl-C and --timeout: nothing but temporaries can be half-written
+/// (outputs are renamed into place), so remove ours and leave at once.
+fn remove_temporaries_on_exit(args: &BakeArgs) {
+    let out_dir = args.out.clone();
+    let _ = ctrlc::set_handler(move || {
+        radbake::output::remove_temporaries(&out_dir, Some(std::process::id()));
+        eprintln!("error: interrupted");
+        std::process::exit(130);
+    });
+    if let Some(secs) = args.timeout.filter(|s| s.is_finite() && *s > 0.0) {
+        let out_dir = args.out.clone();
+        std::thread::spawn(move || {
+            std::thread::sleep(std::time::Duration::from_secs_f64(secs));
+            radbake::output::remove_temporaries(&out_dir, Some(std::process::id()));
+            eprintln!("error: the bake took longer than --timeout {secs} s");
+            std::process::exit(3);
+        });
+    }
+}
+
+/// True (and said, unless quiet) when `args.out` holds a bake of this very
+/// scene and settings (`hash`) with every main output present.
+fn up_to_date(args: &BakeArgs, stem: &str, hash: &str) -> bool {
+    let glb = format!("{stem}.baked.glb");
+    let expected = [
+        "report.json",
+        "manifest.json",
+        "lightmap_0.exr",
+        glb.as_str(),
+    ];
+    let fresh = radbake::incremental::up_to_date(&args.out, hash, &expected);
+    if fresh && !args.quiet {
+        eprintln!(
+            "{}: up to date (use --force to bake again)",
+            args.out.display()
+        );
+    }
+    fresh
+}
+
+/// Writes every output (each atomically) and, last, `report.json` with the
+/// write stage's time; returns the files written.
+fn write_outputs(
+    args: &BakeArgs,
+    stem: &str,
+    bake: &radbake::Bake,
+    report: &mut radbake::report::Report,
+) -> Result<Vec<PathBuf>, (u8, String)> {
+    use radbake::output;
+    let t = Instant::now();
+    let lightmaps = &bake.maps.lightmaps;
+    let mut written = output::write_lightmaps(&args.out, lightmaps).map_err(lib_err)?;
+    written.extend(output::write_extra_maps(&args.out, bake).map_err(lib_err)?);
+    if bake.config.debug_maps {
+        written.extend(output::write_debug_maps(&args.out, bake).map_err(lib_err)?);
+    }
+    written.extend(
+        output::write_engine_outputs(&args.out, stem, bake.scene, &bake.atlas, lightmaps)
+            .map_err(lib_err)?,
+    );
+    report.stages.push(StageTime {
+        stage: "write".into(),
+        seconds: t.elapsed().as_secs_f64(),
+    });
+    written.push(output::write_report(&args.out, report).map_err(lib_err)?);
+    Ok(written)
+}
+
+/// Stage times and counters (`--verbose`), the stats table (`--stats`),
+/// warnings and the one-line summary (unless `--quiet`).
+fn print_summary(args: &BakeArgs, report: &radbake::report::Report, start: Instant, files: usize) {
+    if args.verbose {
+        for s in &report.stages {
+            eprintln!("{:>13}: {:8.3} s", s.stage, s.seconds);
+        }
+        if let Ok(counts) = serde_json::to_string_pretty(&report.counts) {
+            eprintln!("{counts}");
+        }
+    }
+    if args.stats {
+        eprint!("{}", report.stats_table(radbake::report::peak_rss_bytes()));
+    }
+    if !args.quiet {
+        for w in &report.warnings {
+            eprintln!("warning: {w}");
+        }
+        let c = &report.counts;
+        eprintln!(
+            "baked {} triangles, {} texels, {} patches, {} rays, {} iterations in {:.2} s → {} files in {}",
+            c.triangles,
+            c.texels,
+            c.patches,
+            c.rays,
+            c.iterations,
+            start.elapsed().as_secs_f64(),
+            files,
+            args.out.display()
+        );
+    }
+}

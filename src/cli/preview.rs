@@ -1,0 +1,75 @@
+//! `radbake preview`: look at a baked `.glb` in a window, or render it
+//! offscreen (feature `preview`).
+
+use super::{parse_size, Outcome, ViewArgs};
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct PreviewArgs {
+    /// The baked scene (`<stem>.baked.glb` from `radbake bake`).
+    pub scene: PathBuf,
+    /// Render offscreen to --out instead of opening a window.
+    #[arg(long, requires = "out")]
+    pub headless: bool,
+    /// Output PNG of --headless (written atomically).
+    #[arg(long, short, requires = "headless")]
+    pub out: Option<PathBuf>,
+    /// Image (headless) or window size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720", value_parser = parse_size)]
+    pub size: (u32, u32),
+    #[command(flatten)]
+    pub at: ViewArgs,
+    /// Headless: render N frames and print ms/frame. Window: render N frames, then exit.
+    #[arg(long)]
+    pub frames: Option<u32>,
+    /// Window: after --frames frames, save the last view here (PNG) and exit.
+    #[arg(long, requires = "frames", conflicts_with = "headless")]
+    pub screenshot: Option<PathBuf>,
+    /// First debug view.
+    #[arg(long, value_enum, default_value = "lit")]
+    pub view: radbake::preview::ViewMode,
+    /// Bicubic (B-spline) lightmap filtering instead of bilinear.
+    #[arg(long)]
+    pub bicubic: bool,
+    /// Exposure in stops (EV).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Tone map of the HDR values.
+    #[arg(long, value_enum, default_value = "aces")]
+    pub tone_map: radbake::preview::ToneMap,
+}
+
+pub fn run(args: &PreviewArgs) -> Outcome {
+    use radbake::preview::{Options, Settings, Viewpoint};
+    let viewpoint = match (&args.at.camera, args.at.look_from) {
+        (Some(name), _) => Viewpoint::Camera(name.clone()),
+        (None, Some(from)) => Viewpoint::LookAt {
+            from: from.into(),
+            at: args.at.look_at.map(Into::into),
+        },
+        (None, None) => Viewpoint::Auto,
+    };
+    let opts = Options {
+        scene: args.scene.clone(),
+        headless: args.headless,
+        out: args.out.clone(),
+        size: args.size,
+        viewpoint,
+        frames: args.frames,
+        screenshot: args.screenshot.clone(),
+        settings: Settings {
+            view: args.view,
+            bicubic: args.bicubic,
+            exposure_ev: args.exposure,
+            tone_map: args.tone_map,
+        },
+    };
+    radbake::preview::run(&opts).map_err(|e| {
+        let code = match e.downcast_ref::<radbake::Error>() {
+            Some(le) if le.is_input_error() => 1,
+            _ => 3,
+        };
+        (code, format!("{e:#}"))
+    })
+}

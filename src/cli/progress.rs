@@ -1,0 +1,89 @@
+//! Progress of a bake on stderr: indicatif bars (one per stage), or one
+//! JSON object per line for build tools.
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::sync::Mutex;
+use std::time::Instant;
+
+/// indicatif bars, one per stage.
+pub struct Bars {
+    pub bar: Mutex<Option<ProgressBar>>,
+    pub hidden: bool,
+}
+
+impl radbake::Progress for Bars {
+    fn begin(&self, stage: &str, total: u64) {
+        let bar = if total > 0 {
+            ProgressBar::new(total).with_style(
+                ProgressStyle::with_template(
+                    "{msg:>13} [{bar:30}] {pos}/{len} {elapsed} (eta {eta})",
+                )
+                .expect("static template")
+                .progress_chars("=> "),
+            )
+        } else {
+            ProgressBar::new_spinner().with_style(
+                ProgressStyle::with_template("{msg:>13} {spinner} {elapsed}")
+                    .expect("static template"),
+            )
+        };
+        if self.hidden {
+            bar.set_draw_target(ProgressDrawTarget::hidden());
+        } else {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+        }
+        bar.set_message(stage.to_owned());
+        *self.bar.lock().expect("progress lock") = Some(bar);
+    }
+    fn advance(&self, n: u64) {
+        if let Some(b) = self.bar.lock().expect("progress lock").as_ref() {
+            b.inc(n);
+        }
+    }
+    fn end(&self) {
+        if let Some(b) = self.bar.lock().expect("progress lock").take() {
+            b.finish();
+        }
+    }
+}
+
+/// One JSON object per line on stderr: {"stage","done","total","elapsed","eta"}
+/// at most every 100 ms, and at each stage's start and end.
+pub struct JsonProgress {
+    pub state: Mutex<(String, u64, u64, Instant, Instant)>,
+}
+
+impl JsonProgress {
+    fn emit(stage: &str, done: u64, total: u64, started: Instant) {
+        let elapsed = started.elapsed().as_secs_f64();
+        let eta = if done > 0 && total >= done {
+            serde_json::json!(elapsed * (total - done) as f64 / done as f64)
+        } else {
+            serde_json::Value::Null
+        };
+        eprintln!(
+            "{}",
+            serde_json::json!({"stage": stage, "done": done, "total": total, "elapsed": elapsed, "eta": eta})
+        );
+    }
+}
+
+impl radbake::Progress for JsonProgress {
+    fn begin(&self, stage: &str, total: u64) {
+        let now = Instant::now();
+        *self.state.lock().expect("progress lock") = (stage.to_owned(), 0, total, now, now);
+        Self::emit(stage, 0, total, now);
+    }
+    fn advance(&self, n: u64) {
+        let mut s = self.state.lock().expect("progress lock");
+        s.1 += n;
+        if s.4.elapsed().as_millis() >= 100 {
+            s.4 = Instant::now();
+            Self::emit(&s.0, s.1, s.2, s.3);
+        }
+    }
+    fn end(&self) {
+        let s = self.state.lock().expect("progress lock");
+        Self::emit(&s.0, s.1.max(s.2), s.2, s.3);
+    }
+}

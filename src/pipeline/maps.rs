@@ -1,0 +1,101 @@
+//! The lightmap stage: [`TexelLight`] → [`Maps`]. Invalid texels are
+//! filled from their valid neighbours, texels are written into pages and
+//! dilated, UV seams are stitched, and the optional directional (L1 SH) and
+//! ambient-occlusion pages are built from the same texels.
+
+use super::transport::TexelLight;
+use crate::config::BakeConfig;
+use crate::direct::Directional;
+use crate::geometry::Geometry;
+use crate::lightmap::{self, Lightmaps};
+use crate::seams;
+use crate::texels::Texels;
+use glam::Vec3;
+
+/// The lightmap stage's product.
+pub struct Maps {
+    /// Lightmap pages (irradiance / π); `texel_values` are the final values.
+    pub lightmaps: Lightmaps,
+    /// Directional lightmaps (`--directional sh`): a, b_x, b_y, b_z pages,
+    /// irradiance / π for a normal n being a + n_x b_x + n_y b_y + n_z b_z.
+    pub sh: Option<[Lightmaps; 4]>,
+    /// Ambient-occlusion pages (grey), with `--ao DISTANCE`.
+    pub ao: Option<Lightmaps>,
+    /// Texels found inside or under geometry (filled from their neighbours).
+    pub invalid_texels: u64,
+    /// Seam sample pairs stitched.
+    pub seam_samples: u64,
+    /// Mean |difference| across seams (RGB sum) before and after stitching.
+    pub seam_mismatch: [f64; 2],
+}
+
+/// Pages from `light`: invalid texels filled, dilated by twice the padding,
+/// seams stitched (`config.stitch_seams`), then the SH and AO pages.
+pub fn build(
+    texels: &Texels,
+    geometry: &Geometry,
+    page_count: u32,
+    light: &TexelLight,
+    config: &BakeConfig,
+) -> Maps {
+    let dilate = 2 * config.padding;
+    let mut values = light.values.clone();
+    let rings = lightmap::fill_rings(config.patch_texels);
+    lightmap::fill_invalid(texels, &mut values, &light.valid, rings);
+    let invalid_texels = light.valid.iter().filter(|v| !**v).count() as u64;
+    let mut lightmaps = lightmap::build(texels, values, page_count, dilate);
+    let seam_samples = if config.stitch_seams {
+        seams::find(geometry)
+    } else {
+        Vec::new()
+    };
+    let before = seams::mismatch(&lightmaps, &seam_samples);
+    seams::stitch(&mut lightmaps, &seam_samples, 16);
+    let after = seams::mismatch(&lightmaps, &seam_samples);
+    // The texels' final values, as stitched.
+    for t in 0..texels.len() {
+        let [x, y] = texels.xy[t];
+        lightmaps.texel_values[t] =
+            lightmaps.pages[texels.page[t] as usize][(y * texels.width + x) as usize];
+    }
+    let page = |v: Vec<Vec3>| lightmap::build(texels, v, page_count, dilate);
+    let sh = light
+        .directional
+        .as_ref()
+        .map(|b| sh_pages(texels, &lightmaps.texel_values, b, page));
+    let ao = light
+        .ao
+        .as_ref()
+        .map(|ao| page(ao.iter().map(|&v| Vec3::splat(v)).collect()));
+    Maps {
+        lightmaps,
+        sh,
+        ao,
+        invalid_texels,
+        seam_samples: seam_samples.len() as u64,
+        seam_mismatch: [before, after],
+    }
+}
+
+/// L1 directional pages from the directional part `b` of each texel's
+/// light: a = value − n · b, so a + n · b reproduces the lightmap at the
+/// surface normal (Ramamoorthi & Hanrahan 2001).
+fn sh_pages(
+    texels: &Texels,
+    values: &[Vec3],
+    b: &[Directional],
+    page: impl Fn(Vec<Vec3>) -> Lightmaps,
+) -> [Lightmaps; 4] {
+    let a: Vec<Vec3> = (0..texels.len())
+        .map(|t| {
+            let n = texels.n_ws[t];
+            values[t] - b[t][0] * n.x - b[t][1] * n.y - b[t][2] * n.z
+        })
+        .collect();
+    [
+        page(a),
+        page(b.iter().map(|d| d[0]).collect()),
+        page(b.iter().map(|d| d[1]).collect()),
+        page(b.iter().map(|d| d[2]).collect()),
+    ]
+}

@@ -1,0 +1,174 @@
+//! The bake, read top to bottom as the data flow: [`bake`] calls one stage
+//! function per step, and each step's product is a plain, named struct
+//! that the next step reads.
+//!
+//! ```text
+//! Scene ─► Atlas ─► Geometry ─► Texels ─► Patches ─► RayCaster ─► TexelLight ─► Maps ─► files
+//! scene    atlas    geometry    texels    patches    raycast      transport     maps     output
+//! ```
+//!
+//! Light transport ([`transport`]) is one dispatch over
+//! [`Method`](crate::config::Method): radiosity (form factors, direct
+//! light, the solve, the final gather; [`radiosity`]), or the path-traced
+//! and photon-mapped references. Every method returns the same
+//! [`TexelLight`]. The lightmap stage ([`maps`]) turns it into pages (and
+//! the SH and AO pages); [`summary`] turns a [`Bake`] into the report.
+
+pub mod maps;
+pub mod radiosity;
+pub mod summary;
+pub mod transport;
+
+use crate::atlas::{self, Atlas};
+use crate::config::BakeConfig;
+use crate::error::Result;
+use crate::form_factors::raycast::Surfaces;
+use crate::geometry::Geometry;
+use crate::patches::{self, Patches};
+use crate::progress::Progress;
+use crate::raycast::RayCaster;
+use crate::report::StageTime;
+use crate::scene::Scene;
+use crate::texels::{self, Texels};
+pub use maps::Maps;
+use std::time::Instant;
+pub use transport::TexelLight;
+
+/// Everything a bake produced, stage by stage.
+pub struct Bake<'s> {
+    /// The input scene.
+    pub scene: &'s Scene,
+    /// Effective settings.
+    pub config: BakeConfig,
+    /// Lightmap atlas.
+    pub atlas: Atlas,
+    /// World triangles.
+    pub geometry: Geometry,
+    /// Lightmap texels.
+    pub texels: Texels,
+    /// Patches.
+    pub patches: Patches,
+    /// Light transport's product: the light per texel as it arrived (before
+    /// invalid texels are filled), validity, ray counts.
+    pub transport: TexelLight,
+    /// Lightmap pages (and SH, AO pages), seam counters.
+    pub maps: Maps,
+    /// Wall time per stage.
+    pub stages: Vec<StageTime>,
+    /// Non-fatal problems.
+    pub warnings: Vec<String>,
+}
+
+/// Bakes `scene` with `config`, reporting to `progress`.
+///
+/// # Errors
+/// [`Error::Config`](crate::Error::Config) for settings out of range,
+/// [`Error::Unwrap`](crate::Error::Unwrap) when the atlas can't be built,
+/// [`Error::Limit`](crate::Error::Limit) for a singular dense solve.
+pub fn bake<'s>(
+    scene: &'s Scene,
+    config: &BakeConfig,
+    progress: &dyn Progress,
+) -> Result<Bake<'s>> {
+    config.validate()?;
+    let mut log = Log::new(progress, input_warnings(scene));
+
+    log.begin("unwrap", 0);
+    let atlas = atlas::unwrap(scene, config)?;
+    log.warnings.extend(atlas.warnings.iter().cloned());
+    log.end("unwrap");
+
+    log.begin("texels", 0);
+    let geometry = Geometry::new(scene, &atlas);
+    let texels = texels::rasterize(scene, &atlas, &geometry);
+    log.end("texels");
+
+    log.begin("patches", 0);
+    let texel_area = 1.0 / (atlas.texels_per_meter * atlas.texels_per_meter);
+    let patches = patches::build(&texels, config.patch_texels, texel_area);
+    log.end("patches");
+
+    log.begin("bvh", 0);
+    let rays = RayCaster::new(scene, &geometry);
+    log.end("bvh");
+
+    let surfaces = Surfaces {
+        scene,
+        geometry: &geometry,
+        texels: &texels,
+        patches: &patches,
+        rays: &rays,
+    };
+    let light = transport::run(&surfaces, &atlas, config, &mut log)?;
+
+    log.begin("lightmaps", 0);
+    let maps = maps::build(&texels, &geometry, atlas.page_count, &light, config);
+    log.end("lightmaps");
+
+    Ok(Bake {
+        scene,
+        config: config.clone(),
+        atlas,
+        geometry,
+        texels,
+        patches,
+        transport: light,
+        maps,
+        stages: log.stages,
+        warnings: log.warnings,
+    })
+}
+
+/// Warnings about the input itself: the importer's, and a scene that
+/// nothing lights.
+fn input_warnings(scene: &Scene) -> Vec<String> {
+    let mut warnings = scene.warnings.clone();
+    if !scene.has_emitters() {
+        warnings
+            .push("the scene has no emissive surface and no light: the lightmaps are black".into());
+    }
+    warnings
+}
+
+/// What the stages report to: progress, the wall time of each stage, and
+/// warnings.
+pub struct Log<'p> {
+    progress: &'p dyn Progress,
+    start: Instant,
+    /// Wall time per stage, in order.
+    pub stages: Vec<StageTime>,
+    /// Non-fatal problems, in order.
+    pub warnings: Vec<String>,
+}
+
+impl<'p> Log<'p> {
+    /// A log reporting to `progress`, starting with `warnings`.
+    pub fn new(progress: &'p dyn Progress, warnings: Vec<String>) -> Self {
+        Log {
+            progress,
+            start: Instant::now(),
+            stages: Vec::new(),
+            warnings,
+        }
+    }
+
+    /// Stage `stage` begins, with `total` units of work (0: unknown).
+    pub fn begin(&mut self, stage: &str, total: u64) {
+        self.start = Instant::now();
+        self.progress.begin(stage, total);
+    }
+
+    /// Stage `stage` ends: its wall time is recorded.
+    pub fn end(&mut self, stage: &str) {
+        self.progress.end();
+        self.stages.push(StageTime {
+            stage: stage.into(),
+            seconds: self.start.elapsed().as_secs_f64(),
+        });
+    }
+
+    /// Where the current stage reports units done.
+    pub fn progress(&self) -> &'p dyn Progress {
+        self.progress
+    }
+}

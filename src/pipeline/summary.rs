@@ -1,0 +1,133 @@
+//! The bake's summary: [`Bake`] → [`Report`] (`report.json`): per-instance
+//! means, the power balance of the patch solution, and the counters.
+
+use super::Bake;
+use crate::report::{Counts, Energy, InstanceReport, Report};
+
+impl Bake<'_> {
+    /// Per-instance area-weighted means of the texel values.
+    pub fn instance_reports(&self) -> Vec<InstanceReport> {
+        let n = self.scene.instances.len();
+        let mut area = vec![0.0f64; n];
+        let mut sum = vec![[0.0f64; 3]; n];
+        let mut count = vec![0u64; n];
+        for t in 0..self.texels.len() {
+            let i = self.texels.instance[t] as usize;
+            let a = self.texels.area[t] as f64;
+            let v = self.maps.lightmaps.texel_values[t];
+            area[i] += a;
+            count[i] += 1;
+            for c in 0..3 {
+                sum[i][c] += a * v[c] as f64;
+            }
+        }
+        self.scene
+            .instances
+            .iter()
+            .enumerate()
+            .map(|(i, inst)| {
+                let r = self.atlas.instances[i];
+                InstanceReport {
+                    node: inst.node.clone(),
+                    mesh: self.scene.meshes[inst.mesh as usize].name.clone(),
+                    area: area[i],
+                    texels: count[i],
+                    mean: std::array::from_fn(|c| {
+                        if area[i] > 0.0 {
+                            (sum[i][c] / area[i]) as f32
+                        } else {
+                            0.0
+                        }
+                    }),
+                    page: r.page,
+                    uv_rect: [r.min[0], r.min[1], r.max[0], r.max[1]],
+                }
+            })
+            .collect()
+    }
+
+    /// The power balance of the solution (see [`Energy`]).
+    pub fn energy(&self) -> Energy {
+        let mut e = Energy::default();
+        let Some(light) = &self.transport.patch_light else {
+            return e;
+        };
+        let p = &self.patches;
+        let s = &light.solution;
+        let rows = &light.row_sums;
+        let pi = std::f64::consts::PI;
+        for (i, row_sum) in rows.iter().enumerate() {
+            let a = p.area[i] as f64;
+            for c in 0..3 {
+                let emitted = pi * a * p.emission[i][c] as f64;
+                e.emitted[c] += emitted;
+                e.emitted_landing[c] += emitted * *row_sum as f64;
+                e.direct_received[c] += pi * a * light.direct[i][c] as f64;
+                e.absorbed[c] += pi * a * (1.0 - p.albedo[i][c] as f64) * s.irradiance[i][c] as f64;
+                e.reflected_escaped[c] +=
+                    pi * a * s.radiance[i][c] as f64 * (1.0 - *row_sum as f64);
+            }
+        }
+        for c in 0..3 {
+            e.relative_imbalance[c] = if e.direct_received[c] > 0.0 {
+                (e.direct_received[c] - e.absorbed[c] - e.reflected_escaped[c])
+                    / e.direct_received[c]
+            } else {
+                0.0
+            };
+        }
+        e
+    }
+
+    /// The report for this bake of `scene_path`.
+    pub fn report(&self, scene_path: &str) -> Report {
+        let st = &self.scene.stats;
+        let patch_light = self.transport.patch_light.as_ref();
+        let ff = patch_light.map(|p| p.stats.clone()).unwrap_or_default();
+        let solution = patch_light.map(|p| &p.solution);
+        let rays = &self.transport.rays;
+        Report {
+            radbake_version: env!("CARGO_PKG_VERSION").into(),
+            scene: scene_path.into(),
+            settings: self.config.clone(),
+            stages: self.stages.clone(),
+            counts: Counts {
+                triangles: self.geometry.len() as u64,
+                instances: self.scene.instances.len() as u64,
+                meshes: self.scene.meshes.len() as u64,
+                lights: self.scene.lights.len() as u64,
+                degenerate_triangles: st.degenerate_triangles,
+                skipped_primitives: st.skipped_primitives,
+                unmapped_triangles: self.texels.unmapped_triangles,
+                chart_overlaps: self.texels.chart_overlaps,
+                pages: self.atlas.page_count as u64,
+                page_size: [self.atlas.width, self.atlas.height],
+                charts: self.atlas.chart_count as u64,
+                utilization: self.atlas.utilization,
+                texels_per_meter: self.atlas.texels_per_meter,
+                texels: self.texels.len() as u64,
+                patches: self.patches.len() as u64,
+                nonzeros: patch_light
+                    .and_then(|p| p.form_factors.as_ref())
+                    .map_or(0, |f| f.nnz() as u64),
+                rays: rays.total(),
+                rays_form_factors: rays.form_factors,
+                rays_direct: rays.direct,
+                rays_validity: rays.validity,
+                rays_gather: rays.gather,
+                invalid_texels: self.maps.invalid_texels,
+                seam_samples: self.maps.seam_samples,
+                seam_mismatch: self.maps.seam_mismatch,
+                rays_escaped: ff.escaped,
+                rays_back_faces: ff.back_faces,
+                rays_unmapped: ff.unmapped,
+                iterations: solution.map_or(0, |s| s.iterations as u64),
+                shots: solution.map_or(0, |s| s.shots),
+                residual: solution.map_or(0.0, |s| s.residual),
+            },
+            energy: self.energy(),
+            instances: self.instance_reports(),
+            warnings: self.warnings.clone(),
+        }
+    }
+}
