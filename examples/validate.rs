@@ -1,6 +1,6 @@
 //! Bakes the shipped reference scenes with every form-factor method and
 //! solver and prints the error against their exact answers and the time
-//! taken (the README's accuracy table):
+//! taken (the accuracy table of docs/accuracy.md):
 //!
 //!     cargo run --release --example validate [-- bake.toml]
 //!

@@ -20,7 +20,7 @@ pub enum UvSource {
 pub enum Packing {
     /// Rows of charts pushed together by their per-row and per-column
     /// extents (`uvunwrap`'s `Packing::Fast`): on the real scenes as dense
-    /// as `shape` and up to 25 × faster (README).
+    /// as `shape` and up to 25 × faster (docs/performance.md).
     Fast,
     /// Rasterised chart shapes nested into each other's concavities
     /// (`uvunwrap`'s `Packing::Shape`): can be denser, can be far slower
@@ -197,7 +197,7 @@ impl BakeConfig {
             // With the final gather on, F only carries the second and later
             // bounces: 256 rays change the Cornell box's instance means by
             // under 0.06 % and Sponza's texel noise not at all, against
-            // 1024, and save a quarter of Sponza's bake (README).
+            // 1024, and save a quarter of Sponza's bake (docs/performance.md).
             rays_per_patch: 256,
             tolerance: 1e-4,
             max_iterations: 200,

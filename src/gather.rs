@@ -21,7 +21,8 @@
 
 use crate::direct::{hemisphere_light, Directional, Lights, Mis};
 use crate::form_factors::raycast::{Landing, Surfaces, TexelSampler};
-use crate::raycast::{BatchCaster, Hit};
+use crate::raycast::batch::BatchCaster;
+use crate::raycast::Hit;
 use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, Stream};
 use glam::Vec3;
 use rayon::prelude::*;

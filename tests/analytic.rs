@@ -1,7 +1,7 @@
 //! Whole bakes of scenes with exact answers: the reference scenes shipped in
 //! `scenes/` (from `../shared/scenes`, answers in `scenes/expected.json`) and
 //! analytic cases made here. Tolerances are stated per test; the errors
-//! actually reached are in the README.
+//! actually reached are in docs/accuracy.md.
 
 mod common;
 
@@ -47,9 +47,7 @@ fn furnace_box_every_texel_is_two() {
     assert!(worst < 0.01, "worst texel off by {:.3} %", worst * 100.0);
     // A closed cube: every ray lands on a patch, every row of F sums to 1.
     for (i, s) in bake
-        .transport
-        .patch_light
-        .as_ref()
+        .patch_light()
         .expect("radiosity")
         .row_sums
         .iter()
@@ -58,19 +56,8 @@ fn furnace_box_every_texel_is_two() {
         assert!((s - 1.0).abs() < 1e-4, "row {i} sums to {s}");
     }
     assert_eq!(
-        bake.transport
-            .patch_light
-            .as_ref()
-            .expect("radiosity")
-            .stats
-            .escaped
-            + bake
-                .transport
-                .patch_light
-                .as_ref()
-                .expect("radiosity")
-                .stats
-                .unmapped,
+        bake.patch_light().expect("radiosity").stats.escaped
+            + bake.patch_light().expect("radiosity").stats.unmapped,
         0
     );
 }
@@ -91,9 +78,7 @@ fn parallel_plates_receiver_mean() {
     assert!((want - analytic::parallel_rectangles(1.0, 1.0, 1.0)).abs() < 1e-9);
     // CSR rows sum to at most 1 (+ rounding).
     assert!(bake
-        .transport
-        .patch_light
-        .as_ref()
+        .patch_light()
         .expect("radiosity")
         .row_sums
         .iter()
@@ -245,15 +230,7 @@ fn cornell_box_sane() {
     }
     assert_eq!(bake.texels.chart_overlaps, 0);
     assert_eq!(bake.texels.unmapped_triangles, 0);
-    assert_eq!(
-        bake.transport
-            .patch_light
-            .as_ref()
-            .expect("radiosity")
-            .stats
-            .unmapped,
-        0
-    );
+    assert_eq!(bake.patch_light().expect("radiosity").stats.unmapped, 0);
     assert!(bake.maps.lightmaps.pages[0]
         .iter()
         .all(|v| v.is_finite() && v.min_element() >= 0.0));
@@ -300,9 +277,7 @@ fn cornell_box_sane() {
     }
     let mut af = vec![vec![0.0f64; n]; n];
     for (i, row) in bake
-        .transport
-        .patch_light
-        .as_ref()
+        .patch_light()
         .and_then(|p| p.form_factors.as_ref())
         .unwrap()
         .matrix

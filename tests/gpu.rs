@@ -126,7 +126,7 @@ fn assert_gpu_bake_matches_cpu(config: BakeConfig, min_rays: u64) {
         "{} rays, wanted at least {min_rays}",
         gpu.transport.rays.form_factors
     );
-    let row_sums = |b: &radbake::Bake| b.transport.patch_light.as_ref().unwrap().row_sums.clone();
+    let row_sums = |b: &radbake::Bake| b.patch_light().unwrap().row_sums.clone();
     let (cpu_rows, gpu_rows) = (row_sums(&cpu), row_sums(&gpu));
     assert_eq!(cpu_rows.len(), gpu_rows.len());
     for (i, (c, g)) in cpu_rows.iter().zip(&gpu_rows).enumerate() {

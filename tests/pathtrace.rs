@@ -191,7 +191,7 @@ fn bdpt_agrees_with_path_tracing_on_cornell() {
 /// all light arrives through a small hot spot. BDPT's light-tracing and
 /// light-subpath connections find the spot directly; at equal samples its
 /// pixel variance must be under a tenth of the path tracer's (measured:
-/// ~1/100; at equal time ~20× more efficient, README), and the two images
+/// ~1/100; at equal time ~20× more efficient, docs/accuracy.md), and the two images
 /// must agree within noise.
 #[test]
 fn bdpt_beats_path_tracing_on_a_hot_spot() {
@@ -294,7 +294,7 @@ fn instance_means(bake: &radbake::Bake) -> Vec<(String, Vec3)> {
 /// Reference lightmaps: the radiosity bake's per-instance means within 1 %
 /// (the small light 2 %, see below) of path tracing from every texel (256
 /// paths each), at patch size 2 (at
-/// the default 4 the worst instance is 0.98 % off; README), and its texels
+/// the default 4 the worst instance is 0.98 % off; docs/accuracy.md), and its texels
 /// within 8 % RMSE of the reference's mean (the reference's own noise
 /// included). Photon mapping within 3 % per instance.
 #[test]

@@ -7,7 +7,8 @@ mod common;
 
 use common::*;
 use radbake::config::{EmitterSampling, FormFactorMethod, Solver};
-use radbake::form_factors::{analytic, StoredColumns};
+use radbake::form_factors::analytic;
+use radbake::form_factors::rows::StoredColumns;
 use radbake::solve::{self, System};
 use radbake::{BakeConfig, Silent};
 use serde_json::json;
@@ -119,9 +120,7 @@ fn solvers_agree_on_the_same_matrix() {
     };
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
     let f = bake
-        .transport
-        .patch_light
-        .as_ref()
+        .patch_light()
         .expect("radiosity")
         .form_factors
         .as_ref()

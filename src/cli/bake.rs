@@ -33,7 +33,7 @@ pub struct BakeArgs {
     /// Patch size k: patches are k×k texel blocks [default: 4].
     #[arg(long)]
     pub patch_texels: Option<u32>,
-    /// Form-factor rays per patch [default: 1024].
+    /// Form-factor rays per patch [default: 256; preview 128, production 1024].
     #[arg(long)]
     pub rays_per_patch: Option<u32>,
     /// Solver stops when the relative change of radiance is below this [default: 1e-4].
@@ -94,7 +94,7 @@ pub struct BakeArgs {
     /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
     #[arg(long, value_enum)]
     pub emitters: Option<EmitterSampling>,
-    /// Where form-factor rays are cast: cpu, or gpu (wgpu compute; CPU fallback with a warning) [default: cpu].
+    /// Where the form factors' and final gather's rays are cast: cpu, or gpu (wgpu compute; CPU fallback with a warning) [default: cpu].
     #[arg(long, value_enum)]
     pub device: Option<radbake::config::Device>,
     /// Light transport: radiosity, or the pathtrace / photon references [default: radiosity].

@@ -5,17 +5,16 @@
 //!
 //! Stored as a sparse CSR matrix (`nalgebra-sparse`); row i sums to the
 //! fraction of i's hemisphere covered by other (front-facing) patches, 1 in a
-//! closed room. `analytic` holds Howell's closed forms used by the tests.
+//! closed room. [`raycast`] and [`hemicube`] compute rows, [`rows`] serves
+//! them one at a time to progressive refinement; `analytic` holds Howell's
+//! closed forms used by the tests.
 
 pub mod analytic;
 pub mod hemicube;
 pub mod raycast;
+pub mod rows;
 
-use crate::config::{BakeConfig, FormFactorMethod};
-use crate::solve::{GatheringRows, ShootingRows};
 use nalgebra_sparse::CsrMatrix;
-use raycast::Surfaces;
-use std::sync::Mutex;
 
 /// Counters of a form-factor computation.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -106,103 +105,5 @@ impl FormFactorStats {
         self.escaped += o.escaped;
         self.back_faces += o.back_faces;
         self.unmapped += o.unmapped;
-    }
-}
-
-/// Rows of F computed from the shooter when asked, for progressive
-/// refinement: the same rows as the stored matrix would hold (same seeds),
-/// turned into shooting coefficients by reciprocity, Sᵢⱼ = Fᵢⱼ Aᵢ / Aⱼ.
-pub struct OnDemand<'a> {
-    surfaces: &'a Surfaces<'a>,
-    method: FormFactorMethod,
-    rays_per_patch: u32,
-    seed: u64,
-    cube: Option<hemicube::Hemicube>,
-    stats: Mutex<FormFactorStats>,
-}
-
-impl<'a> OnDemand<'a> {
-    /// A row source with `config`'s method and settings.
-    pub fn new(surfaces: &'a Surfaces<'a>, config: &BakeConfig) -> Self {
-        OnDemand {
-            surfaces,
-            method: config.form_factors,
-            rays_per_patch: config.rays_per_patch,
-            seed: config.seed,
-            cube: (config.form_factors == FormFactorMethod::Hemicube)
-                .then(|| hemicube::Hemicube::new(config.hemicube_resolution)),
-            stats: Mutex::new(FormFactorStats::default()),
-        }
-    }
-
-    /// Counters of every row computed so far.
-    pub fn stats(&self) -> FormFactorStats {
-        self.stats.lock().map(|s| s.clone()).unwrap_or_default()
-    }
-}
-
-impl OnDemand<'_> {
-    /// Row i of F (as the stored matrix would hold it).
-    pub fn row(&self, i: usize) -> Vec<(u32, f32)> {
-        let (row, st) = match (&self.cube, self.method) {
-            (Some(cube), FormFactorMethod::Hemicube) => hemicube::row(self.surfaces, cube, i),
-            _ => raycast::row(self.surfaces, i, self.rays_per_patch, self.seed),
-        };
-        if let Ok(mut s) = self.stats.lock() {
-            s.add(&st);
-        }
-        row
-    }
-}
-
-impl GatheringRows for OnDemand<'_> {
-    fn gathering_row(&self, i: usize) -> Vec<(u32, f32)> {
-        self.row(i)
-    }
-}
-
-impl ShootingRows for OnDemand<'_> {
-    fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32) {
-        let row = self.row(i);
-        let area = &self.surfaces.patches.area;
-        let sum = row.iter().map(|e| e.1).sum();
-        let ai = area[i];
-        (
-            row.into_iter()
-                .map(|(j, f)| (j, f * ai / area[j as usize]))
-                .collect(),
-            sum,
-        )
-    }
-}
-
-/// Columns of a stored F (ΔHⱼ = Fⱼᵢ ΔLᵢ), for progressive refinement on
-/// exactly the matrix the other solvers use.
-pub struct StoredColumns {
-    transposed: CsrMatrix<f32>,
-    row_sums: Vec<f32>,
-}
-
-impl StoredColumns {
-    /// Transposes `f` once.
-    pub fn new(f: &FormFactors) -> Self {
-        StoredColumns {
-            transposed: f.matrix.transpose(),
-            row_sums: f.row_sums(),
-        }
-    }
-}
-
-impl ShootingRows for StoredColumns {
-    fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32) {
-        let r = self.transposed.row(i);
-        (
-            r.col_indices()
-                .iter()
-                .zip(r.values())
-                .map(|(&j, &v)| (j as u32, v))
-                .collect(),
-            self.row_sums[i],
-        )
     }
 }

@@ -7,7 +7,8 @@
 use super::{FormFactorStats, FormFactors};
 use crate::geometry::Geometry;
 use crate::patches::Patches;
-use crate::raycast::{BatchCaster, Hit, RayCaster};
+use crate::raycast::batch::BatchCaster;
+use crate::raycast::{Hit, RayCaster};
 use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, to_world, Stream};
 use crate::scene::Scene;
 use crate::texels::Texels;

@@ -3,7 +3,7 @@
 //! dilated, UV seams are stitched, and the optional directional (L1 SH) and
 //! ambient-occlusion pages are built from the same texels.
 
-use super::transport::TexelLight;
+use super::texel_light::TexelLight;
 use crate::config::BakeConfig;
 use crate::direct::Directional;
 use crate::geometry::Geometry;

@@ -14,9 +14,11 @@
 //! [`TexelLight`]. The lightmap stage ([`maps`]) turns it into pages (and
 //! the SH and AO pages); [`summary`] turns a [`Bake`] into the report.
 
+pub mod log;
 pub mod maps;
 pub mod radiosity;
 pub mod summary;
+pub mod texel_light;
 pub mod transport;
 
 use crate::atlas::{self, Atlas};
@@ -30,9 +32,9 @@ use crate::raycast::RayCaster;
 use crate::report::StageTime;
 use crate::scene::Scene;
 use crate::texels::{self, Texels};
+use log::Log;
 pub use maps::Maps;
-use std::time::Instant;
-pub use transport::TexelLight;
+pub use texel_light::{PatchLight, Rays, TexelLight};
 
 /// Everything a bake produced, stage by stage.
 pub struct Bake<'s> {
@@ -119,6 +121,13 @@ pub fn bake<'s>(
     })
 }
 
+impl Bake<'_> {
+    /// Radiosity's patch-level products (`None` for the reference methods).
+    pub fn patch_light(&self) -> Option<&PatchLight> {
+        self.transport.patch_light.as_ref()
+    }
+}
+
 /// Warnings about the input itself: the importer's, and a scene that
 /// nothing lights.
 fn input_warnings(scene: &Scene) -> Vec<String> {
@@ -128,47 +137,4 @@ fn input_warnings(scene: &Scene) -> Vec<String> {
             .push("the scene has no emissive surface and no light: the lightmaps are black".into());
     }
     warnings
-}
-
-/// What the stages report to: progress, the wall time of each stage, and
-/// warnings.
-pub struct Log<'p> {
-    progress: &'p dyn Progress,
-    start: Instant,
-    /// Wall time per stage, in order.
-    pub stages: Vec<StageTime>,
-    /// Non-fatal problems, in order.
-    pub warnings: Vec<String>,
-}
-
-impl<'p> Log<'p> {
-    /// A log reporting to `progress`, starting with `warnings`.
-    pub fn new(progress: &'p dyn Progress, warnings: Vec<String>) -> Self {
-        Log {
-            progress,
-            start: Instant::now(),
-            stages: Vec::new(),
-            warnings,
-        }
-    }
-
-    /// Stage `stage` begins, with `total` units of work (0: unknown).
-    pub fn begin(&mut self, stage: &str, total: u64) {
-        self.start = Instant::now();
-        self.progress.begin(stage, total);
-    }
-
-    /// Stage `stage` ends: its wall time is recorded.
-    pub fn end(&mut self, stage: &str) {
-        self.progress.end();
-        self.stages.push(StageTime {
-            stage: stage.into(),
-            seconds: self.start.elapsed().as_secs_f64(),
-        });
-    }
-
-    /// Where the current stage reports units done.
-    pub fn progress(&self) -> &'p dyn Progress {
-        self.progress
-    }
 }

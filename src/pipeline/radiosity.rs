@@ -10,34 +10,21 @@
 //! come on demand ([`OnDemand`]) and its solution is completed by
 //! gathering sweeps ([`progressive::gather_sweeps`]).
 
-use super::transport::{Rays, TexelLight};
-use super::Log;
+use super::log::Log;
+use super::texel_light::{PatchLight, Rays, TexelLight};
 use crate::atlas::Atlas;
 use crate::config::{self, BakeConfig, FormFactorMethod, Solver};
 use crate::direct::{self, Directional, Lights, Mis};
 use crate::error::{Error, Result};
 use crate::form_factors::raycast::Surfaces;
-use crate::form_factors::{self, FormFactorStats, FormFactors, OnDemand};
+use crate::form_factors::rows::OnDemand;
+use crate::form_factors::{self, FormFactors};
 use crate::gather::{self, Extras, Gathered, Gatherer};
-use crate::raycast::{self, BatchCaster};
-use crate::solve::{self, progressive, Solution, System};
+use crate::raycast::batch::BatchCaster;
+use crate::raycast::device;
+use crate::solve::{self, progressive, System};
 use crate::{denoise, lightmap};
 use glam::Vec3;
-
-/// Radiosity's patch-level products.
-#[derive(Clone, Debug, Default)]
-pub struct PatchLight {
-    /// Form factors (`None` for progressive refinement, which stores none).
-    pub form_factors: Option<FormFactors>,
-    /// Form-factor counters.
-    pub stats: FormFactorStats,
-    /// Σⱼ Fᵢⱼ per patch.
-    pub row_sums: Vec<f32>,
-    /// Direct light per patch (area-weighted mean of its texels').
-    pub direct: Vec<Vec3>,
-    /// The solution (H per patch includes the direct light).
-    pub solution: Solution,
-}
 
 /// The direct-light stage's product.
 struct DirectLight {
@@ -193,7 +180,7 @@ fn gpu_caster<'a>(
     if config.device != config::Device::Gpu || !uses {
         return None;
     }
-    match raycast::gpu_batches(s.scene, s.geometry, s.rays) {
+    match device::gpu_batches(s.scene, s.geometry, s.rays) {
         Ok(g) => {
             warnings.push(format!(
                 "form-factor and final-gather rays cast on the GPU: {}",

@@ -4,58 +4,15 @@
 //! Jensen 1996) are the references it is checked against, and return the
 //! same product.
 
-use super::radiosity::{self, PatchLight};
-use super::Log;
+use super::log::Log;
+use super::radiosity;
+use super::texel_light::{Rays, TexelLight};
 use crate::atlas::Atlas;
 use crate::config::{BakeConfig, Method};
-use crate::direct::Directional;
 use crate::error::Result;
 use crate::form_factors::raycast::Surfaces;
 use crate::trace::{self, Tracer};
 use glam::Vec3;
-
-/// The light per texel, as every method of light transport returns it.
-#[derive(Clone, Debug, Default)]
-pub struct TexelLight {
-    /// Incident irradiance / π per texel (linear RGB), as it arrived: the
-    /// invalid texels' values are not yet filled.
-    pub values: Vec<Vec3>,
-    /// Validity per texel (false: inside or under geometry; the lightmap
-    /// stage fills it from its neighbours).
-    pub valid: Vec<bool>,
-    /// The direct part of `values` per texel (zero for the references).
-    pub direct: Vec<Vec3>,
-    /// The directional part b per texel (`--directional sh` with the final
-    /// gather): irradiance / π for a normal n is a + n · b.
-    pub directional: Option<Vec<Directional>>,
-    /// Ambient occlusion per texel (`--ao DISTANCE` with the final gather).
-    pub ao: Option<Vec<f32>>,
-    /// Rays cast, per purpose.
-    pub rays: Rays,
-    /// Radiosity's patch-level products (`None` for the references).
-    pub patch_light: Option<PatchLight>,
-}
-
-/// Rays cast by light transport, per purpose.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Rays {
-    /// Form factors.
-    pub form_factors: u64,
-    /// Direct light (shadow and hemisphere rays).
-    pub direct: u64,
-    /// The validity estimate before the final gather.
-    pub validity: u64,
-    /// The final gather (the references: paths traced, or photons emitted
-    /// plus gather rays).
-    pub gather: u64,
-}
-
-impl Rays {
-    /// Every ray.
-    pub fn total(&self) -> u64 {
-        self.form_factors + self.direct + self.validity + self.gather
-    }
-}
 
 /// Light transport by `config.method`.
 ///

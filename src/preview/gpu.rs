@@ -22,7 +22,7 @@ pub struct Globals {
     pub camera_pos: [f32; 4],
     /// Linear exposure multiplier 2^EV.
     pub exposure: f32,
-    /// Debug view ([`super::ViewMode`] as u32).
+    /// Debug view ([`super::options::ViewMode`] as u32).
     pub view_mode: u32,
     /// 1 for bicubic lightmap filtering, 0 for bilinear.
     pub bicubic: u32,

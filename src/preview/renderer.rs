@@ -5,7 +5,7 @@
 use super::camera::Camera;
 use super::gpu::{self, Globals, Vertex};
 use super::model::Model;
-use super::Settings;
+use super::options::Settings;
 use crate::scene::Wrap;
 use wgpu::util::DeviceExt as _;
 

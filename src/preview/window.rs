@@ -2,9 +2,10 @@
 //! settings on keys, fps and help in the title bar.
 
 use super::camera::{Camera, Mode};
+use super::headless::write_png;
 use super::model::Model;
+use super::options::{initial_camera, Options, ToneMap, ViewMode};
 use super::renderer::Renderer;
-use super::{Options, ToneMap, ViewMode};
 use anyhow::{anyhow, Context as _, Result};
 use glam::Vec3;
 use std::collections::HashSet;
@@ -61,14 +62,14 @@ impl App {
                 .create_window(attrs)
                 .context("cannot create a window")?,
         );
-        let instance = super::instance(
+        let instance = crate::adapter::instance(
             wgpu::Backends::all(),
             Some(Box::new(event_loop.owned_display_handle())),
         );
         let surface = instance
             .create_surface(window.clone())
             .context("cannot create a window surface")?;
-        let (adapter, device, queue) = super::device(&instance, Some(&surface))?;
+        let (adapter, device, queue) = crate::adapter::device(&instance, Some(&surface))?;
         let size = window.inner_size();
         let mut config = surface
             .get_default_config(&adapter, size.width.max(1), size.height.max(1))
@@ -101,7 +102,7 @@ impl App {
             self.opts.settings,
         );
         renderer.resize(config.width, config.height);
-        let adapter = super::describe(&adapter);
+        let adapter = crate::adapter::describe(&adapter);
         eprintln!("radbake preview on {adapter}\n{HELP}");
         self.state = Some(State {
             window,
@@ -187,7 +188,7 @@ impl App {
                 self.screenshots += 1;
                 let (w, h) = r.size();
                 let rgba = r.render_to_image()?;
-                super::write_png(&path, w, h, &rgba)?;
+                write_png(&path, w, h, &rgba)?;
                 eprintln!("wrote {}", path.display());
             }
             _ => {}
@@ -255,7 +256,7 @@ impl App {
                 if let (Some(path), Some(s)) = (&self.opts.screenshot, &mut self.state) {
                     let (w, h) = s.renderer.size();
                     let rgba = s.renderer.render_to_image()?;
-                    super::write_png(path, w, h, &rgba)?;
+                    write_png(path, w, h, &rgba)?;
                     eprintln!(
                         "{} frames in the window on {} ({:.1} fps); wrote {}",
                         self.frames,
@@ -372,7 +373,7 @@ impl ApplicationHandler for App {
 
 /// Opens the window and runs until it is closed (or `opts.frames` are drawn).
 pub fn run(model: Model, opts: &Options) -> Result<()> {
-    let start_camera = super::initial_camera(&model, &opts.viewpoint)?;
+    let start_camera = initial_camera(&model, &opts.viewpoint)?;
     let event_loop = EventLoop::new().map_err(|e| {
         anyhow!("cannot open a window ({e}); is there a display (DISPLAY/WAYLAND_DISPLAY)? Use --headless to render offscreen")
     })?;

@@ -22,7 +22,7 @@
 //!
 //! This replaced obvhs's own CWBVH traversal for CPU rays: on the same
 //! PLOC build, the same rays and the same triangle test it casts more rays
-//! per second (README, "Ray casting vs Embree").
+//! per second (docs/performance.md, "Ray casting vs Embree").
 
 use glam::Vec3;
 use std::mem::MaybeUninit;

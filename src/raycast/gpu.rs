@@ -11,7 +11,8 @@
 //! hit is masked is re-cast there. BVHs deeper than the shader's stack are
 //! refused (the caller falls back to the CPU).
 
-use super::{BatchCaster, Consume, Generate, Hit, RayCaster};
+use super::batch::{BatchCaster, Consume, Generate};
+use super::{Hit, RayCaster};
 use crate::geometry::Geometry;
 use crate::scene::{Alpha, Scene};
 use anyhow::{anyhow, bail, Context as _, Result};

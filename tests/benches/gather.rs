@@ -16,21 +16,12 @@ fn final_gather(c: &mut Criterion) {
     let rays = RayCaster::new(&scene, &bake.geometry);
     let s = common::surfaces(&scene, &bake, &rays);
     let indirect: Vec<Vec3> = bake
-        .transport
-        .patch_light
-        .as_ref()
+        .patch_light()
         .expect("radiosity")
         .solution
         .irradiance
         .iter()
-        .zip(
-            &bake
-                .transport
-                .patch_light
-                .as_ref()
-                .expect("radiosity")
-                .direct,
-        )
+        .zip(&bake.patch_light().expect("radiosity").direct)
         .map(|(h, d)| *h - *d)
         .collect();
     let first = lightmap::first_pass(

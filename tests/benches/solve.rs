@@ -7,7 +7,7 @@
 mod common;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use radbake::form_factors::StoredColumns;
+use radbake::form_factors::rows::StoredColumns;
 use radbake::solve::{jacobi, progressive, System};
 
 fn solve(c: &mut Criterion) {
@@ -17,18 +17,11 @@ fn solve(c: &mut Criterion) {
     let system = System {
         emission: &emission,
         albedo: &bake.patches.albedo,
-        direct: &bake
-            .transport
-            .patch_light
-            .as_ref()
-            .expect("radiosity")
-            .direct,
+        direct: &bake.patch_light().expect("radiosity").direct,
         area: &bake.patches.area,
     };
     let ff = bake
-        .transport
-        .patch_light
-        .as_ref()
+        .patch_light()
         .expect("radiosity")
         .form_factors
         .as_ref()

@@ -1,0 +1,66 @@
+//! The product of light transport, the same for every method:
+//! [`TexelLight`] (the light per texel, its validity, the rays cast), with
+//! radiosity's patch-level solution ([`PatchLight`]) where radiosity ran.
+
+use crate::direct::Directional;
+use crate::form_factors::{FormFactorStats, FormFactors};
+use crate::solve::Solution;
+use glam::Vec3;
+
+/// The light per texel, as every method of light transport returns it.
+#[derive(Clone, Debug, Default)]
+pub struct TexelLight {
+    /// Incident irradiance / π per texel (linear RGB), as it arrived: the
+    /// invalid texels' values are not yet filled.
+    pub values: Vec<Vec3>,
+    /// Validity per texel (false: inside or under geometry; the lightmap
+    /// stage fills it from its neighbours).
+    pub valid: Vec<bool>,
+    /// The direct part of `values` per texel (zero for the references).
+    pub direct: Vec<Vec3>,
+    /// The directional part b per texel (`--directional sh` with the final
+    /// gather): irradiance / π for a normal n is a + n · b.
+    pub directional: Option<Vec<Directional>>,
+    /// Ambient occlusion per texel (`--ao DISTANCE` with the final gather).
+    pub ao: Option<Vec<f32>>,
+    /// Rays cast, per purpose.
+    pub rays: Rays,
+    /// Radiosity's patch-level products (`None` for the references).
+    pub patch_light: Option<PatchLight>,
+}
+
+/// Rays cast by light transport, per purpose.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Rays {
+    /// Form factors.
+    pub form_factors: u64,
+    /// Direct light (shadow and hemisphere rays).
+    pub direct: u64,
+    /// The validity estimate before the final gather.
+    pub validity: u64,
+    /// The final gather (the references: paths traced, or photons emitted
+    /// plus gather rays).
+    pub gather: u64,
+}
+
+impl Rays {
+    /// Every ray.
+    pub fn total(&self) -> u64 {
+        self.form_factors + self.direct + self.validity + self.gather
+    }
+}
+
+/// Radiosity's patch-level products.
+#[derive(Clone, Debug, Default)]
+pub struct PatchLight {
+    /// Form factors (`None` for progressive refinement, which stores none).
+    pub form_factors: Option<FormFactors>,
+    /// Form-factor counters.
+    pub stats: FormFactorStats,
+    /// Σⱼ Fᵢⱼ per patch.
+    pub row_sums: Vec<f32>,
+    /// Direct light per patch (area-weighted mean of its texels').
+    pub direct: Vec<Vec3>,
+    /// The solution (H per patch includes the direct light).
+    pub solution: Solution,
+}
