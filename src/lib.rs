@@ -40,6 +40,7 @@ pub mod gather;
 pub mod geometry;
 pub mod incremental;
 pub mod lightmap;
+pub mod measure;
 pub mod output;
 pub mod patches;
 pub mod photon;

@@ -29,6 +29,8 @@ enum Command {
     Preview(cli::preview::PreviewArgs),
     /// Path-trace an image of a scene: the reference, or the final pass over a bake's lightmaps.
     Render(cli::render::RenderArgs),
+    /// Measure the irradiance nodes receive, independently of any bake (JSON out).
+    Measure(cli::measure::MeasureArgs),
 }
 
 fn main() -> ExitCode {
@@ -57,6 +59,7 @@ fn main() -> ExitCode {
     let result = std::panic::catch_unwind(|| match &cli.command {
         Command::Bake(args) => cli::bake::run(args),
         Command::Render(args) => cli::render::run(args),
+        Command::Measure(args) => cli::measure::run(args),
         #[cfg(feature = "preview")]
         Command::Preview(args) => cli::preview::run(args),
     });

@@ -112,10 +112,19 @@ pub struct InstanceReport {
     pub mesh: String,
     /// Surface area (m²) covered by texels.
     pub area: f64,
+    /// Area of the valid texels (m²): the rest lies inside or under
+    /// geometry.
+    pub valid_area: f64,
     /// Covered texels.
     pub texels: u64,
-    /// Area-weighted mean lightmap value (irradiance / π, linear RGB).
+    /// Area-weighted mean irradiance / π (linear RGB) that the surface
+    /// receives: every texel as light transport computed it, buried texels
+    /// at what they receive (before they are filled from their neighbours).
+    /// The physical figure, what an irradiance meter reads.
     pub mean: [f32; 3],
+    /// Area-weighted mean of the lightmap as written (invalid texels filled
+    /// from their neighbours, seams stitched): what a renderer shows.
+    pub lightmap_mean: [f32; 3],
     /// Atlas page.
     pub page: u32,
     /// Rectangle in the page, (min.x, min.y, max.x, max.y) in [0, 1] (Bevy's `uv_rect`).

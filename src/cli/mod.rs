@@ -1,11 +1,12 @@
-//! The `radbake` subcommands, one file each: [`bake`], [`render`] and
-//! [`preview`], with [`progress`] (bars or JSON lines). This file holds what
+//! The `radbake` subcommands, one file each: [`bake`], [`render`],
+//! [`measure`] and [`preview`], with [`progress`] (bars or JSON lines). This file holds what
 //! they share: viewpoint arguments, value parsers and exit codes.
 //!
 //! Exit codes: 0 success (or already up to date), 1 bad input (scene or
 //! settings), 2 usage error, 3 I/O or internal error.
 
 pub mod bake;
+pub mod measure;
 #[cfg(feature = "preview")]
 pub mod preview;
 pub mod progress;

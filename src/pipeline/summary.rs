@@ -5,40 +5,52 @@ use super::Bake;
 use crate::report::{Counts, Energy, InstanceReport, Report};
 
 impl Bake<'_> {
-    /// Per-instance area-weighted means of the texel values.
+    /// Per instance: the area-weighted mean of the light that arrives
+    /// (`mean`: texel values as light transport left them, buried texels at
+    /// what they receive), of the filled and stitched lightmap
+    /// (`lightmap_mean`), and the area of valid texels.
     pub fn instance_reports(&self) -> Vec<InstanceReport> {
         let n = self.scene.instances.len();
-        let mut area = vec![0.0f64; n];
-        let mut sum = vec![[0.0f64; 3]; n];
-        let mut count = vec![0u64; n];
+        let mut acc = vec![InstanceSums::default(); n];
         for t in 0..self.texels.len() {
-            let i = self.texels.instance[t] as usize;
+            let sums = &mut acc[self.texels.instance[t] as usize];
             let a = self.texels.area[t] as f64;
-            let v = self.maps.lightmaps.texel_values[t];
-            area[i] += a;
-            count[i] += 1;
+            let arrived = self.transport.values[t];
+            let lightmap = self.maps.lightmaps.texel_values[t];
+            sums.area += a;
+            sums.texels += 1;
+            if self.transport.valid[t] {
+                sums.valid_area += a;
+            }
             for c in 0..3 {
-                sum[i][c] += a * v[c] as f64;
+                sums.arrived[c] += a * arrived[c] as f64;
+                sums.lightmap[c] += a * lightmap[c] as f64;
             }
         }
         self.scene
             .instances
             .iter()
+            .zip(&acc)
             .enumerate()
-            .map(|(i, inst)| {
+            .map(|(i, (inst, sums))| {
                 let r = self.atlas.instances[i];
-                InstanceReport {
-                    node: inst.node.clone(),
-                    mesh: self.scene.meshes[inst.mesh as usize].name.clone(),
-                    area: area[i],
-                    texels: count[i],
-                    mean: std::array::from_fn(|c| {
-                        if area[i] > 0.0 {
-                            (sum[i][c] / area[i]) as f32
+                let mean = |sum: &[f64; 3]| {
+                    std::array::from_fn(|c| {
+                        if sums.area > 0.0 {
+                            (sum[c] / sums.area) as f32
                         } else {
                             0.0
                         }
-                    }),
+                    })
+                };
+                InstanceReport {
+                    node: inst.node.clone(),
+                    mesh: self.scene.meshes[inst.mesh as usize].name.clone(),
+                    area: sums.area,
+                    valid_area: sums.valid_area,
+                    texels: sums.texels,
+                    mean: mean(&sums.arrived),
+                    lightmap_mean: mean(&sums.lightmap),
                     page: r.page,
                     uv_rect: [r.min[0], r.min[1], r.max[0], r.max[1]],
                 }
@@ -130,4 +142,16 @@ impl Bake<'_> {
             warnings: self.warnings.clone(),
         }
     }
+}
+
+/// One instance's sums over its texels.
+#[derive(Clone, Default)]
+struct InstanceSums {
+    area: f64,
+    valid_area: f64,
+    texels: u64,
+    /// Σ area × the light that arrived.
+    arrived: [f64; 3],
+    /// Σ area × the lightmap value.
+    lightmap: [f64; 3],
 }
