@@ -11,9 +11,18 @@
 //! bilinear sample on each side, Σ wᵢ vᵢ, is moved towards the pair's mean by
 //! relaxation sweeps over the texels (padding texels included) that the
 //! samples touch.
+//!
+//! Only one continuous surface seen from one side is stitched. Two faces
+//! that meet at an edge are joined only where they lie on opposite sides
+//! of it (not folded back, not overlapping), and each point pair only
+//! where both texels are valid (not inside or under geometry) and the two
+//! points see each other just above the surface. Game levels put walls
+//! back to back: the two rooms' floors then meet under the wall, and
+//! joining them carried the lit room's light into the sealed one.
 
 use crate::geometry::Geometry;
 use crate::lightmap::Lightmaps;
+use crate::raycast::RayCaster;
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 
@@ -29,8 +38,13 @@ pub struct SeamSample {
     pub b: (u32, Vec2),
 }
 
-/// Finds the seam samples of `geometry`.
-pub fn find(geometry: &Geometry) -> Vec<SeamSample> {
+/// Finds the seam samples of `geometry`: pairs that `rays` finds in sight
+/// of each other, on texels that `valid(page, texel coordinate)` accepts.
+pub fn find(
+    geometry: &Geometry,
+    rays: &RayCaster,
+    valid: &dyn Fn(u32, Vec2) -> bool,
+) -> Vec<SeamSample> {
     let q = |p: Vec3| (p * 1e5).round().as_i64vec3().to_array();
     // Edge (sorted quantised endpoints) → (triangle, corner i, corner j).
     type Edge = ([i64; 3], [i64; 3]);
@@ -65,6 +79,9 @@ pub fn find(geometry: &Geometry) -> Vec<SeamSample> {
         } else {
             (jb, ib)
         };
+        if !opposite_sides(geometry, ta_u, tb_u, pa) {
+            continue; // folded back or overlapping: not one surface
+        }
         let la = [geometry.uv_lm[ta_u][ia], geometry.uv_lm[ta_u][ja]];
         let lb = [geometry.uv_lm[tb_u][ib], geometry.uv_lm[tb_u][jb]];
         let same_page = geometry.page[ta_u] == geometry.page[tb_u];
@@ -83,13 +100,50 @@ pub fn find(geometry: &Geometry) -> Vec<SeamSample> {
             let ub = lb[0].lerp(lb[1], s);
             let ua = ua + (centre_a - ua).normalize_or_zero() * 0.01;
             let ub = ub + (centre_b - ub).normalize_or_zero() * 0.01;
+            let (page_a, page_b) = (geometry.page[ta_u], geometry.page[tb_u]);
+            if !valid(page_a, ua) || !valid(page_b, ub) {
+                continue; // inside or under geometry on one side
+            }
+            if !in_sight(geometry, rays, (ta_u, tb_u), pa[0].lerp(pa[1], s)) {
+                continue; // a wall stands on the seam
+            }
             samples.push(SeamSample {
-                a: (geometry.page[ta_u], ua),
-                b: (geometry.page[tb_u], ub),
+                a: (page_a, ua),
+                b: (page_b, ub),
             });
         }
     }
     samples
+}
+
+/// True when triangles `a` and `b`, which share the edge `edge`, lie on
+/// opposite sides of it (each one's third corner on its own side), as the
+/// two halves of one surface do.
+fn opposite_sides(geometry: &Geometry, a: usize, b: usize, edge: [Vec3; 2]) -> bool {
+    let e = edge[1] - edge[0];
+    let away = |t: usize| {
+        let c = geometry.p_ws[t].iter().sum::<Vec3>() / 3.0 - edge[0];
+        c - e * (c.dot(e) / e.length_squared().max(f32::MIN_POSITIVE))
+    };
+    away(a).dot(away(b)) < 0.0
+}
+
+/// True when points just inside triangles `a` and `b` next to the seam
+/// point `p`, lifted just above their faces, see each other: nothing
+/// stands on the seam there. The points are a thousandth of the faces'
+/// size from the seam and lifted as far, which keeps the segment between
+/// them above a 30° crease.
+fn in_sight(geometry: &Geometry, rays: &RayCaster, (a, b): (usize, usize), p: Vec3) -> bool {
+    let lifted = |t: usize| {
+        let c = geometry.p_ws[t].iter().sum::<Vec3>() / 3.0;
+        let size = geometry.area[t].sqrt();
+        let d = (1e-3 * size).max(1e-4);
+        p + (c - p).normalize_or_zero() * d + geometry.ng_ws[t] * d
+    };
+    let (pa, pb) = (lifted(a), lifted(b));
+    let along = pb - pa;
+    let dist = along.length();
+    dist <= 0.0 || rays.unoccluded(pa, along / dist, dist)
 }
 
 /// The four texels and bilinear weights of texel coordinate `uv`.

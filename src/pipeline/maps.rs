@@ -6,11 +6,11 @@
 use super::texel_light::TexelLight;
 use crate::config::BakeConfig;
 use crate::direct::Directional;
-use crate::geometry::Geometry;
+use crate::form_factors::raycast::Surfaces;
 use crate::lightmap::{self, Lightmaps};
 use crate::seams;
 use crate::texels::Texels;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// The lightmap stage's product.
 pub struct Maps {
@@ -31,13 +31,8 @@ pub struct Maps {
 
 /// Pages from `light`: invalid texels filled, dilated by twice the padding,
 /// seams stitched (`config.stitch_seams`), then the SH and AO pages.
-pub fn build(
-    texels: &Texels,
-    geometry: &Geometry,
-    page_count: u32,
-    light: &TexelLight,
-    config: &BakeConfig,
-) -> Maps {
+pub fn build(s: &Surfaces, page_count: u32, light: &TexelLight, config: &BakeConfig) -> Maps {
+    let texels = s.texels;
     let dilate = 2 * config.padding;
     let mut values = light.values.clone();
     let rings = lightmap::fill_rings(config.patch_texels);
@@ -45,7 +40,8 @@ pub fn build(
     let invalid_texels = light.valid.iter().filter(|v| !**v).count() as u64;
     let mut lightmaps = lightmap::build(texels, values, page_count, dilate);
     let seam_samples = if config.stitch_seams {
-        seams::find(geometry)
+        let valid = ValidityGrid::new(texels, page_count, &light.valid);
+        seams::find(s.geometry, s.rays, &|page, uv| valid.at(page, uv))
     } else {
         Vec::new()
     };
@@ -74,6 +70,40 @@ pub fn build(
         invalid_texels,
         seam_samples: seam_samples.len() as u64,
         seam_mismatch: [before, after],
+    }
+}
+
+/// Texel validity by page and texel coordinate, for the seam stage.
+struct ValidityGrid {
+    width: u32,
+    height: u32,
+    /// Per page texel: 0 no texel, 1 valid, 2 invalid.
+    cells: Vec<Vec<u8>>,
+}
+
+impl ValidityGrid {
+    fn new(texels: &Texels, page_count: u32, valid: &[bool]) -> Self {
+        let (width, height) = (texels.width, texels.height);
+        let mut cells = vec![vec![0u8; (width * height) as usize]; page_count as usize];
+        for t in 0..texels.len() {
+            let [x, y] = texels.xy[t];
+            cells[texels.page[t] as usize][(y * width + x) as usize] = 1 + !valid[t] as u8;
+        }
+        ValidityGrid {
+            width,
+            height,
+            cells,
+        }
+    }
+
+    /// False where the texel at texel coordinate `uv` of `page` is invalid.
+    fn at(&self, page: u32, uv: Vec2) -> bool {
+        let (x, y) = (uv.x.floor(), uv.y.floor());
+        if x < 0.0 || y < 0.0 || x >= self.width as f32 || y >= self.height as f32 {
+            return true;
+        }
+        let i = (y as u32 * self.width + x as u32) as usize;
+        self.cells.get(page as usize).is_none_or(|p| p[i] != 2)
     }
 }
 

@@ -104,7 +104,7 @@ pub fn bake<'s>(
     let light = transport::run(&surfaces, &atlas, config, &mut log)?;
 
     log.begin("lightmaps", 0);
-    let maps = maps::build(&texels, &geometry, atlas.page_count, &light, config);
+    let maps = maps::build(&surfaces, atlas.page_count, &light, config);
     log.end("lightmaps");
 
     Ok(Bake {
