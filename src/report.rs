@@ -29,6 +29,9 @@ pub struct Counts {
     pub degenerate_triangles: u64,
     /// Point/line primitives skipped on import.
     pub skipped_primitives: u64,
+    /// Triangle primitives whose index count does not fit their mode
+    /// (trailing indices dropped, with a warning naming each).
+    pub malformed_primitives: u64,
     /// Triangles that got no lightmap texel.
     pub unmapped_triangles: u64,
     /// Texels touched by two charts (0 for a valid atlas).

@@ -345,3 +345,35 @@ fn existing_uvs_are_repacked() {
     let err = radbake::bake(&scene, &cfg, &Silent).err().expect("refused");
     assert!(err.to_string().contains("uv"), "{err}");
 }
+
+/// A TRIANGLES primitive whose index count is not a multiple of 3 is baked
+/// without its trailing indices, never silently: a warning names the mesh
+/// and primitive, and `report.json` counts it.
+#[test]
+fn malformed_index_counts_are_warned_and_counted() {
+    let mut g = GltfBuilder::default();
+    let m = g.material([0.5; 3], [1.0; 3]);
+    let (p, mut idx) = quad([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+    idx.push(1); // 7 indices
+    let mesh = g.mesh(&p, &idx, Some(m));
+    g.meshes[mesh]["name"] = serde_json::json!("panel");
+    g.node("panel", mesh);
+    let path = temp_dir("malformed_indices").join("scene.gltf");
+    g.write(&path);
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let bake = radbake::bake(&scene, &BakeConfig::default(), &Silent).unwrap();
+    let report = bake.report("scene.gltf");
+    assert_eq!(report.counts.malformed_primitives, 1);
+    assert_eq!(report.counts.triangles, 2, "the whole triangles are kept");
+    let w: Vec<_> = report
+        .warnings
+        .iter()
+        .filter(|w| w.contains("not a multiple of 3"))
+        .collect();
+    assert_eq!(w.len(), 1, "{:?}", report.warnings);
+    assert!(
+        w[0].contains("meshes[0].primitives[0]") && w[0].contains("panel"),
+        "{}",
+        w[0]
+    );
+}

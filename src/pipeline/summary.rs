@@ -110,6 +110,7 @@ impl Bake<'_> {
                 lights: self.scene.lights.len() as u64,
                 degenerate_triangles: st.degenerate_triangles,
                 skipped_primitives: st.skipped_primitives,
+                malformed_primitives: st.malformed_primitives,
                 unmapped_triangles: self.texels.unmapped_triangles,
                 chart_overlaps: self.texels.chart_overlaps,
                 pages: self.atlas.page_count as u64,

@@ -733,6 +733,10 @@ fn import_mesh(
         {
             return Err(ctx.invalid(&location, "attributes have different counts"));
         }
+        if let Some(problem) = malformed(mode, indices.len()) {
+            stats.malformed_primitives += 1;
+            warnings.push(format!("{location} (mesh `{}`): {problem}", out.name));
+        }
         let tris = triangulate(mode, &indices);
         let material = prim
             .material()
@@ -787,6 +791,23 @@ fn import_mesh(
         out.uv1 = Some(uv1);
     }
     Ok(out)
+}
+
+/// What is wrong with a triangle primitive of `count` indices (or
+/// vertices), if anything: TRIANGLES needs a multiple of 3, strips and fans
+/// at least 3 (glTF 2.0 §3.7.2.1). The bake drops what cannot form a
+/// triangle, and says so.
+fn malformed(mode: Mode, count: usize) -> Option<String> {
+    match mode {
+        Mode::Triangles if count % 3 != 0 => Some(format!(
+            "{count} indices are not a multiple of 3 (TRIANGLES): the last {} dropped",
+            count % 3
+        )),
+        Mode::TriangleStrip | Mode::TriangleFan if count < 3 => Some(format!(
+            "{count} indices make no triangle ({mode:?}): the primitive is empty"
+        )),
+        _ => None,
+    }
 }
 
 /// Triangle lists from glTF's three triangle modes (glTF 2.0 §3.7.2.1).
@@ -1038,6 +1059,10 @@ mod tests {
             vec![[1, 2, 0], [2, 3, 0]]
         );
         assert_eq!(triangulate(Mode::Triangles, &[0, 1, 2, 3]), vec![[0, 1, 2]]);
+        assert!(malformed(Mode::Triangles, 4).is_some_and(|m| m.contains("last 1 dropped")));
+        assert!(malformed(Mode::Triangles, 6).is_none());
+        assert!(malformed(Mode::TriangleStrip, 2).is_some());
+        assert!(malformed(Mode::TriangleFan, 3).is_none());
     }
 
     #[test]

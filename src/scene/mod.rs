@@ -202,6 +202,9 @@ pub struct ImportStats {
     pub degenerate_triangles: u64,
     /// Point and line primitives skipped.
     pub skipped_primitives: u64,
+    /// Triangle primitives whose index count does not fit their mode
+    /// (trailing indices dropped, with a warning).
+    pub malformed_primitives: u64,
 }
 
 /// The file as written, kept for outputs that round-trip it (the baked glTF)
