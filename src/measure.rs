@@ -46,11 +46,24 @@ pub struct Reading {
     pub std_error: [f64; 3],
 }
 
+/// The normal a sample point's hemisphere is taken about.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum MeterNormal {
+    /// The interpolated `NORMAL` (the smooth surface the mesh stands for).
+    #[default]
+    Shading,
+    /// The triangle's own normal (the facet as modelled; what the bake's
+    /// texels use).
+    Geometric,
+}
+
 /// What to measure, and how.
 #[derive(Clone, Debug)]
 pub struct MeterSettings {
     /// Sample points per node.
     pub samples: u64,
+    /// The normal of each sample point.
+    pub normal: MeterNormal,
     /// Sky radiance seen by rays leaving the scene.
     pub sky: Vec3,
     /// Seed of the random streams.
@@ -134,7 +147,8 @@ impl<'s> Meter<'s> {
                 for _ in c * CHUNK..((c + 1) * CHUNK).min(n) {
                     let x = area * rng.next_f32() as f64;
                     let k = cdf.partition_point(|&a| a <= x).min(tris.len() - 1);
-                    let (p, normal) = point_on(g, tris[k] as usize, rng.next_vec2());
+                    let (p, normal) =
+                        point_on(g, tris[k] as usize, rng.next_vec2(), settings.normal);
                     let h = tracer.incident(p, normal, &mut rng, 0).0;
                     for ch in 0..3 {
                         let v = h[ch] as f64;
@@ -168,9 +182,10 @@ impl<'s> Meter<'s> {
     }
 }
 
-/// A uniform point on triangle `t` (square-root parametrisation) and the
-/// interpolated shading normal there, turned to the triangle's front.
-fn point_on(g: &Geometry, t: usize, u: Vec2) -> (Vec3, Vec3) {
+/// A uniform point on triangle `t` (square-root parametrisation) and its
+/// normal: the interpolated shading normal (turned to the triangle's
+/// front), or the triangle's own.
+fn point_on(g: &Geometry, t: usize, u: Vec2, normal: MeterNormal) -> (Vec3, Vec3) {
     let r = u.x.sqrt();
     let (b1, b2) = (r * (1.0 - u.y), r * u.y);
     let b0 = 1.0 - b1 - b2;
@@ -178,6 +193,9 @@ fn point_on(g: &Geometry, t: usize, u: Vec2) -> (Vec3, Vec3) {
     let [na, nb, nc] = g.n_ws[t];
     let p = a * b0 + b * b1 + c * b2;
     let ng = g.ng_ws[t];
+    if normal == MeterNormal::Geometric {
+        return (p, ng);
+    }
     let n = (na * b0 + nb * b1 + nc * b2).normalize_or(ng);
     // A shading normal facing away from the triangle's front would send
     // the hemisphere into the surface.

@@ -14,6 +14,7 @@ use std::process::Command;
 fn settings(samples: u64) -> MeterSettings {
     MeterSettings {
         samples,
+        normal: Default::default(),
         sky: glam::Vec3::ZERO,
         seed: 7,
     }

@@ -4,7 +4,7 @@
 
 use super::{lib_err, parse_rgb, Outcome};
 use clap::Args;
-use radbake::measure::{Meter, MeterSettings};
+use radbake::measure::{Meter, MeterNormal, MeterSettings};
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -20,6 +20,9 @@ pub struct MeasureArgs {
     /// Sky radiance `r,g,b` seen by rays leaving the scene (as `bake --sky`).
     #[arg(long, value_parser = parse_rgb, default_value = "0")]
     pub sky: [f32; 3],
+    /// The normal of each sample point: the interpolated NORMAL, or the triangle's own.
+    #[arg(long, value_enum, default_value = "shading")]
+    pub normal: MeterNormal,
     /// Seed of the random sequences (readings are deterministic for a seed).
     #[arg(long, default_value_t = 0x5eed)]
     pub seed: u64,
@@ -36,6 +39,7 @@ pub fn run(args: &MeasureArgs) -> Outcome {
     let scene = radbake::scene::load(&args.scene, &Default::default()).map_err(lib_err)?;
     let settings = MeterSettings {
         samples: args.samples,
+        normal: args.normal,
         sky: args.sky.into(),
         seed: args.seed,
     };

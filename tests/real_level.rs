@@ -1,0 +1,54 @@
+//! A game level against the independent irradiance meter: the generated
+//! atrium (`examples/gen_level`: floors, outer walls, columns and arches,
+//! emissive wall lamps, a sun), baked at 4 texels/m. Every instance of at
+//! least 10 m² must have its `mean` within 5 % of the meter, except the
+//! lamps: thin boxes whose 5 cm side faces are a fifth of a texel wide,
+//! which the lightmap cannot resolve (their `mean` reads 31 % low; see the
+//! README's "Not yet done").
+
+mod common;
+#[path = "benches/common/level.rs"]
+#[allow(dead_code)]
+mod level;
+
+use radbake::measure::{Meter, MeterSettings};
+use radbake::{BakeConfig, Silent};
+
+#[test]
+fn level_means_match_the_meter() {
+    let level = level::generate(5000);
+    let (doc, bin) = level.to_gltf();
+    let path = common::temp_dir("real_level").join("level.glb");
+    radbake::output::write_bytes_atomic(&path, &radbake::output::baked::glb(&doc, &bin)).unwrap();
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let config = BakeConfig {
+        texels_per_meter: 4.0,
+        ..BakeConfig::default()
+    };
+    let bake = radbake::bake(&scene, &config, &Silent).unwrap();
+    let big: Vec<_> = bake
+        .instance_reports()
+        .into_iter()
+        .filter(|r| r.area >= 10.0 && r.node != "lamps")
+        .collect();
+    assert!(big.len() >= 5, "floors, walls, roof: {}", big.len());
+    let nodes: Vec<String> = big.iter().map(|r| r.node.clone()).collect();
+    let settings = MeterSettings {
+        samples: 40_000,
+        normal: Default::default(),
+        sky: config.sky.into(),
+        seed: 3,
+    };
+    let readings = Meter::new(&scene).measure(&nodes, &settings).unwrap();
+    for (r, m) in big.iter().zip(&readings) {
+        assert_eq!(r.node, m.node);
+        let want = m.mean.iter().sum::<f64>() / 3.0;
+        let got = r.mean.iter().sum::<f32>() as f64 / 3.0;
+        assert!(
+            (got / want - 1.0).abs() <= 0.05,
+            "{}: mean {got:.4}, meter {want:.4} ({:+.2} %)",
+            r.node,
+            100.0 * (got / want - 1.0)
+        );
+    }
+}
