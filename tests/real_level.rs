@@ -8,7 +8,6 @@
 
 mod common;
 #[path = "benches/common/level.rs"]
-#[allow(dead_code)]
 mod level;
 
 use radbake::measure::{Meter, MeterSettings};
