@@ -14,7 +14,7 @@
 //!
 //!     cargo run --release --example validity_probe -- Sponza.lit.gltf texels_per_meter=4 near=0.5
 
-use radbake::form_factors::raycast::{Landing, Surfaces};
+use radbake::form_factors::raycast::Landing;
 use radbake::raycast::RayCaster;
 use radbake::sampling::{cosine_hemisphere, offset_ray_origin, stratified, Stream};
 use radbake::{BakeConfig, Silent};
@@ -36,13 +36,7 @@ fn main() -> anyhow::Result<()> {
     let scene = radbake::scene::load(path.as_ref(), &Default::default())?;
     let bake = radbake::bake(&scene, &config, &Silent)?;
     let rays = RayCaster::new(&scene, &bake.geometry);
-    let s = Surfaces {
-        scene: &scene,
-        geometry: &bake.geometry,
-        texels: &bake.texels,
-        patches: &bake.patches,
-        rays: &rays,
-    };
+    let s = bake.surfaces(&rays);
     const N: u32 = 64;
     // Per instance: (invalid area, near, far, mixed, none) areas.
     let mut per = vec![[0.0f64; 5]; scene.instances.len()];

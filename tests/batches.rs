@@ -8,7 +8,7 @@ mod common;
 
 use common::scene_path;
 use glam::Vec3;
-use radbake::form_factors::raycast::{self, Surfaces};
+use radbake::form_factors::raycast;
 use radbake::gather::{Extras, Gatherer};
 use radbake::raycast::batch::CpuBatches;
 use radbake::raycast::RayCaster;
@@ -25,13 +25,7 @@ fn batched_form_factors_and_gather_equal_the_cpu_path() {
     };
     let bake = radbake::bake(&scene, &config, &Silent).expect("bake");
     let rays = RayCaster::new(&scene, &bake.geometry);
-    let s = Surfaces {
-        scene: &scene,
-        geometry: &bake.geometry,
-        texels: &bake.texels,
-        patches: &bake.patches,
-        rays: &rays,
-    };
+    let s = bake.surfaces(&rays);
     // Batches of 13 items: neither patches nor texels divide evenly.
     let batches = CpuBatches {
         rays: &rays,

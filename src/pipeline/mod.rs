@@ -121,7 +121,23 @@ pub fn bake<'s>(
     })
 }
 
-impl Bake<'_> {
+impl<'s> Bake<'s> {
+    /// What the light stages read of this bake, over ray caster `rays`
+    /// (built over [`Bake::geometry`]): for running a stage again, in
+    /// tests, benchmarks and examples.
+    pub fn surfaces<'a>(&'a self, rays: &'a RayCaster) -> Surfaces<'a>
+    where
+        's: 'a,
+    {
+        Surfaces {
+            scene: self.scene,
+            geometry: &self.geometry,
+            texels: &self.texels,
+            patches: &self.patches,
+            rays,
+        }
+    }
+
     /// Radiosity's patch-level products (`None` for the reference methods).
     pub fn patch_light(&self) -> Option<&PatchLight> {
         self.transport.patch_light.as_ref()

@@ -41,20 +41,8 @@ pub fn render_headless(model: &Model, opts: &Options) -> Result<Headless> {
     let (w, h) = opts.size;
     r.resize(w, h);
     let frames = opts.frames.unwrap_or(1).max(1);
-    let target = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("headless"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    });
+    let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+    let target = renderer::render_target(&device, "headless", (w, h), format, usage);
     let view = target.create_view(&Default::default());
     // A warm-up frame (pipeline compilation, uploads), then the timed ones,
     // each waited for so the time is the GPU's, not the queue's.

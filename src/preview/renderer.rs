@@ -405,20 +405,13 @@ impl Renderer {
         match &self.depth {
             Some((view, dw, dh)) if (*dw, *dh) == (w, h) => view.clone(),
             _ => {
-                let texture = self.device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some("depth"),
-                    size: wgpu::Extent3d {
-                        width: w,
-                        height: h,
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format: DEPTH_FORMAT,
-                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-                    view_formats: &[],
-                });
+                let texture = render_target(
+                    &self.device,
+                    "depth",
+                    (w, h),
+                    DEPTH_FORMAT,
+                    wgpu::TextureUsages::RENDER_ATTACHMENT,
+                );
                 let view = texture.create_view(&Default::default());
                 self.depth = Some((view.clone(), w, h));
                 view
@@ -596,4 +589,28 @@ pub fn read_back(
         }
     }
     Ok(out)
+}
+
+/// A single-sample 2D texture of `size` to render into.
+pub fn render_target(
+    device: &wgpu::Device,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
 }

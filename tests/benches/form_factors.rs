@@ -14,7 +14,7 @@ fn form_factors(c: &mut Criterion) {
     let scene = common::cornell();
     let bake = common::cornell_bake(&scene);
     let rays = RayCaster::new(&scene, &bake.geometry);
-    let s = common::surfaces(&scene, &bake, &rays);
+    let s = bake.surfaces(&rays);
     let config = &bake.config;
     let mut group = c.benchmark_group("form_factors_cornell");
     group.throughput(Throughput::Elements(bake.patches.len() as u64));

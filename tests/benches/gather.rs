@@ -14,7 +14,7 @@ fn final_gather(c: &mut Criterion) {
     let scene = common::cornell();
     let bake = common::cornell_bake(&scene);
     let rays = RayCaster::new(&scene, &bake.geometry);
-    let s = common::surfaces(&scene, &bake, &rays);
+    let s = bake.surfaces(&rays);
     let indirect: Vec<Vec3> = bake
         .patch_light()
         .expect("radiosity")

@@ -187,21 +187,6 @@ pub fn cornell_bake(scene: &Scene) -> radbake::Bake<'_> {
         .expect("the Cornell box bakes")
 }
 
-/// The bake's surfaces for the stage functions, casting through `rays`.
-pub fn surfaces<'a>(
-    scene: &'a Scene,
-    bake: &'a radbake::Bake,
-    rays: &'a radbake::raycast::RayCaster,
-) -> radbake::form_factors::raycast::Surfaces<'a> {
-    radbake::form_factors::raycast::Surfaces {
-        scene,
-        geometry: &bake.geometry,
-        texels: &bake.texels,
-        patches: &bake.patches,
-        rays,
-    }
-}
-
 /// The emission entering the solve per patch (emitters sampled as direct
 /// light are left out, as `radbake::bake` does).
 pub fn solve_emission(bake: &radbake::Bake) -> Vec<Vec3> {
