@@ -18,7 +18,7 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
-/// The keys, as printed by `H` and in the README.
+/// The keys, as printed by `H` and in docs/preview.md.
 pub const HELP: &str = "\
 mouse: left drag orbit/look, right or middle drag pan, wheel zoom
 Tab: orbit <-> fly camera    W A S D: move (fly), Q/E: down/up, Shift: faster
