@@ -140,7 +140,11 @@ fn accessor_elements(
     Some((out, elem, count))
 }
 
-/// Builds the baked `.glb` for `scene` with `lightmaps` laid out by `atlas`.
+/// Builds the baked `.glb` for `scene` with `lightmaps` laid out by `atlas`:
+/// the source document with its buffers packed into one, its images
+/// embedded, the lightmap pages as textures, every primitive re-indexed
+/// with the unwrap's `TEXCOORD_1`, and each instance's materials carrying
+/// `MOZ_lightmap` with its own page rectangle.
 ///
 /// # Errors
 /// [`Error::Encode`] when the scene was not loaded from a file or its
@@ -151,24 +155,38 @@ pub fn baked_glb(
     lightmaps: &Lightmaps,
     name: &str,
 ) -> Result<Vec<u8>> {
-    let fail = |m: String| Error::Encode {
-        path: name.into(),
-        message: m,
-    };
+    let fail = |m: String| encode_error(name, m);
     let src = scene
         .source
         .as_ref()
         .ok_or_else(|| fail("the scene has no source document".into()))?;
     let mut doc = src.json.clone();
+    let (mut b, view_offsets) = pack_buffers(&doc, &src.buffers);
+    embed_images(&mut doc, &src.images, &mut b, name)?;
+    let pages = lightmap_textures(&mut doc, &mut b, lightmaps);
+    let prims = reindex_primitives(scene, atlas, &doc, &mut b, &view_offsets, name)?;
+    lightmapped_instances(scene, atlas, &mut doc, &prims, &pages);
+    Ok(finish(doc, b))
+}
 
-    // 1. Pack all buffers into one.
+/// An [`Error::Encode`] for the output `name`.
+fn encode_error(name: &str, message: String) -> Error {
+    Error::Encode {
+        path: name.into(),
+        message,
+    }
+}
+
+/// Step 1: every buffer packed into one; the buffer views moved there.
+/// Returns the builder and each original view's offset in the new buffer.
+fn pack_buffers(doc: &Value, buffers: &[Vec<u8>]) -> (Builder, Vec<usize>) {
     let mut b = Builder {
         bin: Vec::new(),
         views: Vec::new(),
         accessors: Vec::new(),
     };
     let mut buffer_base = Vec::new();
-    for buf in &src.buffers {
+    for buf in buffers {
         b.align();
         buffer_base.push(b.bin.len());
         b.bin.extend_from_slice(buf);
@@ -191,37 +209,56 @@ pub fn baked_glb(
         })
         .collect();
     b.accessors = doc["accessors"].as_array().cloned().unwrap_or_default();
+    (b, view_offsets)
+}
 
-    // 2. Images with URIs become buffer views.
-    if let Some(images) = doc["images"].as_array_mut() {
-        for (i, img) in images.iter_mut().enumerate() {
-            if img.get("uri").is_some() {
-                if let Some(Some((bytes, mime))) = src.images.get(i) {
-                    let view = {
-                        b.align();
-                        let off = b.bin.len();
-                        b.bin.extend_from_slice(bytes);
-                        b.views.push(
-                            json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len()}),
-                        );
-                        b.views.len() - 1
-                    };
-                    let obj = img
-                        .as_object_mut()
-                        .ok_or_else(|| fail(format!("images[{i}] is not an object")))?;
-                    obj.remove("uri");
-                    obj.insert("bufferView".into(), json!(view));
-                    obj.insert("mimeType".into(), json!(mime));
-                }
-            }
+/// Step 2: images with URIs become buffer views.
+fn embed_images(
+    doc: &mut Value,
+    images_src: &[Option<(Vec<u8>, String)>],
+    b: &mut Builder,
+    name: &str,
+) -> Result<()> {
+    let Some(images) = doc["images"].as_array_mut() else {
+        return Ok(());
+    };
+    for (i, img) in images.iter_mut().enumerate() {
+        if img.get("uri").is_none() {
+            continue;
+        }
+        if let Some(Some((bytes, mime))) = images_src.get(i) {
+            b.align();
+            let off = b.bin.len();
+            b.bin.extend_from_slice(bytes);
+            b.views
+                .push(json!({"buffer": 0, "byteOffset": off, "byteLength": bytes.len()}));
+            let view = b.views.len() - 1;
+            let obj = img
+                .as_object_mut()
+                .ok_or_else(|| encode_error(name, format!("images[{i}] is not an object")))?;
+            obj.remove("uri");
+            obj.insert("bufferView".into(), json!(view));
+            obj.insert("mimeType".into(), json!(mime));
         }
     }
+    Ok(())
+}
 
-    // 3. Lightmap pages as textures.
-    let mut page_texture = Vec::new();
-    let mut page_intensity = Vec::new();
+/// The lightmap pages as textures: each page's texture and its
+/// `MOZ_lightmap` intensity.
+struct PageTextures {
+    texture: Vec<usize>,
+    intensity: Vec<f32>,
+}
+
+/// Step 3: the lightmap pages as PNG textures.
+fn lightmap_textures(doc: &mut Value, b: &mut Builder, lightmaps: &Lightmaps) -> PageTextures {
+    let mut pages = PageTextures {
+        texture: Vec::new(),
+        intensity: Vec::new(),
+    };
     let sampler = push(
-        &mut doc,
+        doc,
         "samplers",
         json!({"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}),
     );
@@ -229,22 +266,43 @@ pub fn baked_glb(
         let (png, scale) = encode_png(lightmaps, page);
         let view = b.view(&png, None, None);
         let image = push(
-            &mut doc,
+            doc,
             "images",
             json!({"bufferView": view, "mimeType": "image/png", "name": format!("lightmap_{page}")}),
         );
-        page_texture.push(push(
-            &mut doc,
+        pages.texture.push(push(
+            doc,
             "textures",
             json!({"source": image, "sampler": sampler, "name": format!("lightmap_{page}")}),
         ));
         // MOZ_lightmap's intensity includes π: three.js reads texel × intensity as irradiance.
-        page_intensity.push(std::f32::consts::PI * scale);
+        pages.intensity.push(std::f32::consts::PI * scale);
     }
+    pages
+}
 
-    // 4. Re-indexed primitives, once per (mesh, primitive).
-    let mut prim_data: HashMap<(usize, usize), (Value, Value)> = HashMap::new(); // → (attributes, targets)
-    let mut prim_indices: HashMap<(usize, usize), usize> = HashMap::new();
+/// Re-indexed primitives by (glTF mesh, primitive): (attributes, targets)
+/// and the indices' accessor.
+struct Primitives {
+    data: HashMap<(usize, usize), (Value, Value)>,
+    indices: HashMap<(usize, usize), usize>,
+}
+
+/// Step 4: every primitive re-indexed once per (mesh, primitive), with the
+/// unwrap's vertices: attributes and morph targets copied per output
+/// vertex, `TEXCOORD_1` from the unwrap.
+fn reindex_primitives(
+    scene: &Scene,
+    atlas: &Atlas,
+    doc: &Value,
+    b: &mut Builder,
+    view_offsets: &[usize],
+    name: &str,
+) -> Result<Primitives> {
+    let mut out = Primitives {
+        data: HashMap::new(),
+        indices: HashMap::new(),
+    };
     for (m, mesh) in scene.meshes.iter().enumerate() {
         let unwrap = &atlas.meshes[m];
         let gm = mesh.gltf_index;
@@ -276,60 +334,12 @@ pub fn baked_glb(
                 .iter()
                 .map(|&o| mesh.vertex_source[unwrap.xref[o as usize] as usize] as usize)
                 .collect();
-            let gather = |b: &mut Builder, acc: usize, semantic: &str| -> Result<usize> {
-                let (data, elem, count) = accessor_elements(&doc, &b.bin, &view_offsets, acc)
-                    .ok_or_else(|| {
-                        fail(format!(
-                            "meshes[{gm}].primitives[{p}]: accessor {acc} cannot be read"
-                        ))
-                    })?;
-                let stride = elem.div_ceil(4) * 4;
-                let mut bytes = vec![0u8; stride * source.len()];
-                for (k, &s) in source.iter().enumerate() {
-                    if s >= count {
-                        return Err(fail(format!("meshes[{gm}].primitives[{p}].attributes.{semantic}: vertex {s} out of range")));
-                    }
-                    bytes[k * stride..k * stride + elem]
-                        .copy_from_slice(&data[s * elem..(s + 1) * elem]);
-                }
-                let view = b.view(&bytes, (stride != elem).then_some(stride), Some(34962));
-                let mut a = b.accessors[acc].clone();
-                let obj = a
-                    .as_object_mut()
-                    .ok_or_else(|| fail(format!("accessors[{acc}] is not an object")))?;
-                obj.remove("sparse");
-                obj.remove("byteOffset");
-                obj.insert("bufferView".into(), json!(view));
-                obj.insert("count".into(), json!(source.len()));
-                if obj.contains_key("min") || semantic == "POSITION" {
-                    // Bounds of the elements actually kept (float VEC3 positions).
-                    if b.accessors[acc]["componentType"] == json!(5126)
-                        && b.accessors[acc]["type"] == json!("VEC3")
-                    {
-                        let mut lo = [f32::INFINITY; 3];
-                        let mut hi = [f32::NEG_INFINITY; 3];
-                        for k in 0..source.len() {
-                            for c in 0..3 {
-                                let o = k * stride + 4 * c;
-                                let v = f32::from_le_bytes([
-                                    bytes[o],
-                                    bytes[o + 1],
-                                    bytes[o + 2],
-                                    bytes[o + 3],
-                                ]);
-                                lo[c] = lo[c].min(v);
-                                hi[c] = hi[c].max(v);
-                            }
-                        }
-                        obj.insert("min".into(), json!(lo));
-                        obj.insert("max".into(), json!(hi));
-                    } else {
-                        obj.remove("min");
-                        obj.remove("max");
-                    }
-                }
-                b.accessors.push(a);
-                Ok(b.accessors.len() - 1)
+            let copy = Copy {
+                doc,
+                view_offsets,
+                source: &source,
+                location: format!("meshes[{gm}].primitives[{p}]"),
+                name,
             };
             let mut attributes = serde_json::Map::new();
             if let Some(attrs) = prim["attributes"].as_object() {
@@ -338,22 +348,22 @@ pub fn baked_glb(
                         continue;
                     }
                     let acc = acc.as_u64().ok_or_else(|| {
-                        fail(format!("meshes[{gm}].primitives[{p}].attributes.{sem}"))
+                        encode_error(name, format!("{}.attributes.{sem}", copy.location))
                     })? as usize;
-                    attributes.insert(sem.clone(), json!(gather(&mut b, acc, sem)?));
+                    attributes.insert(sem.clone(), json!(copy.attribute(b, acc, sem)?));
                 }
             }
             let mut targets = Vec::new();
             if let Some(ts) = prim["targets"].as_array() {
                 for t in ts {
-                    let mut out = serde_json::Map::new();
+                    let mut target = serde_json::Map::new();
                     if let Some(t) = t.as_object() {
                         for (sem, acc) in t {
                             let acc = acc.as_u64().unwrap_or(u64::MAX) as usize;
-                            out.insert(sem.clone(), json!(gather(&mut b, acc, sem)?));
+                            target.insert(sem.clone(), json!(copy.attribute(b, acc, sem)?));
                         }
                     }
-                    targets.push(Value::Object(out));
+                    targets.push(Value::Object(target));
                 }
             }
             // TEXCOORD_1: the unwrap's UV in [0, 1] of the instance rectangle.
@@ -372,29 +382,109 @@ pub fn baked_glb(
             let idx: Vec<u8> = indices.iter().flat_map(|i| i.to_le_bytes()).collect();
             let view = b.view(&idx, None, Some(34963));
             b.accessors.push(json!({"bufferView": view, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}));
-            prim_indices.insert((gm, p), b.accessors.len() - 1);
-            prim_data.insert((gm, p), (Value::Object(attributes), Value::Array(targets)));
+            out.indices.insert((gm, p), b.accessors.len() - 1);
+            out.data
+                .insert((gm, p), (Value::Object(attributes), Value::Array(targets)));
         }
     }
+    Ok(out)
+}
 
-    // 5. Per instance: its mesh (the original for the first instance, copies
-    // after), with lightmapped material copies.
+/// Copies a primitive's attributes per output vertex (step 4).
+struct Copy<'a> {
+    doc: &'a Value,
+    view_offsets: &'a [usize],
+    /// Output vertex → the primitive's own vertex.
+    source: &'a [usize],
+    location: String,
+    name: &'a str,
+}
+
+impl Copy<'_> {
+    /// Accessor `acc`'s elements for the output vertices, as a new accessor
+    /// (tightly packed, 4-byte aligned; a float VEC3's bounds recomputed).
+    fn attribute(&self, b: &mut Builder, acc: usize, semantic: &str) -> Result<usize> {
+        let fail = |m: String| encode_error(self.name, m);
+        let (data, elem, count) = accessor_elements(self.doc, &b.bin, self.view_offsets, acc)
+            .ok_or_else(|| fail(format!("{}: accessor {acc} cannot be read", self.location)))?;
+        let stride = elem.div_ceil(4) * 4;
+        let mut bytes = vec![0u8; stride * self.source.len()];
+        for (k, &s) in self.source.iter().enumerate() {
+            if s >= count {
+                return Err(fail(format!(
+                    "{}.attributes.{semantic}: vertex {s} out of range",
+                    self.location
+                )));
+            }
+            bytes[k * stride..k * stride + elem].copy_from_slice(&data[s * elem..(s + 1) * elem]);
+        }
+        let view = b.view(&bytes, (stride != elem).then_some(stride), Some(34962));
+        let mut a = b.accessors[acc].clone();
+        let obj = a
+            .as_object_mut()
+            .ok_or_else(|| fail(format!("accessors[{acc}] is not an object")))?;
+        obj.remove("sparse");
+        obj.remove("byteOffset");
+        obj.insert("bufferView".into(), json!(view));
+        obj.insert("count".into(), json!(self.source.len()));
+        if obj.contains_key("min") || semantic == "POSITION" {
+            // Bounds of the elements actually kept (float VEC3 positions).
+            if b.accessors[acc]["componentType"] == json!(5126)
+                && b.accessors[acc]["type"] == json!("VEC3")
+            {
+                let (lo, hi) = vec3_bounds(&bytes, stride, self.source.len());
+                obj.insert("min".into(), json!(lo));
+                obj.insert("max".into(), json!(hi));
+            } else {
+                obj.remove("min");
+                obj.remove("max");
+            }
+        }
+        b.accessors.push(a);
+        Ok(b.accessors.len() - 1)
+    }
+}
+
+/// Component-wise bounds of `n` float VEC3 elements `stride` bytes apart.
+fn vec3_bounds(bytes: &[u8], stride: usize, n: usize) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for k in 0..n {
+        for c in 0..3 {
+            let o = k * stride + 4 * c;
+            let v = f32::from_le_bytes([bytes[o], bytes[o + 1], bytes[o + 2], bytes[o + 3]]);
+            lo[c] = lo[c].min(v);
+            hi[c] = hi[c].max(v);
+        }
+    }
+    (lo, hi)
+}
+
+/// Step 5: per instance, its mesh (the original for the first instance,
+/// copies after), with lightmapped copies of its materials.
+fn lightmapped_instances(
+    scene: &Scene,
+    atlas: &Atlas,
+    doc: &mut Value,
+    prims: &Primitives,
+    pages: &PageTextures,
+) {
     let mut first_use: HashMap<usize, bool> = HashMap::new();
     for (i, inst) in scene.instances.iter().enumerate() {
         let mesh = &scene.meshes[inst.mesh as usize];
         let gm = mesh.gltf_index;
         let rect = atlas.instances[i];
         let mut mesh_json = doc["meshes"][gm].clone();
-        if let Some(prims) = mesh_json["primitives"].as_array_mut() {
-            for (p, prim) in prims.iter_mut().enumerate() {
-                let Some((attrs, targets)) = prim_data.get(&(gm, p)) else {
+        if let Some(list) = mesh_json["primitives"].as_array_mut() {
+            for (p, prim) in list.iter_mut().enumerate() {
+                let Some((attrs, targets)) = prims.data.get(&(gm, p)) else {
                     continue;
                 };
                 prim["attributes"] = attrs.clone();
                 if prim.get("targets").is_some() {
                     prim["targets"] = targets.clone();
                 }
-                prim["indices"] = json!(prim_indices[&(gm, p)]);
+                prim["indices"] = json!(prims.indices[&(gm, p)]);
                 prim["mode"] = json!(4);
                 let mut material = match prim.get("material").and_then(Value::as_u64) {
                     Some(m) => doc["materials"][m as usize].clone(),
@@ -407,9 +497,9 @@ pub fn baked_glb(
                 }
                 let page = rect.page as usize;
                 let lightmap = json!({
-                    "index": page_texture[page],
+                    "index": pages.texture[page],
                     "texCoord": 1,
-                    "intensity": page_intensity[page],
+                    "intensity": pages.intensity[page],
                     "extensions": {"KHR_texture_transform": {
                         "offset": [rect.min[0], rect.min[1]],
                         "scale": [rect.max[0] - rect.min[0], rect.max[1] - rect.min[1]],
@@ -419,28 +509,30 @@ pub fn baked_glb(
                     material["extensions"] = json!({});
                 }
                 material["extensions"]["MOZ_lightmap"] = lightmap;
-                prim["material"] = json!(push(&mut doc, "materials", material));
+                prim["material"] = json!(push(doc, "materials", material));
             }
         }
         let index = if first_use.insert(gm, true).is_none() {
             doc["meshes"][gm] = mesh_json;
             gm
         } else {
-            push(&mut doc, "meshes", mesh_json)
+            push(doc, "meshes", mesh_json)
         };
         doc["nodes"][inst.node_index]["mesh"] = json!(index);
     }
+}
 
-    // 6. Finish the document.
+/// Step 6: the packed buffer, views and accessors into the document, the
+/// extensions declared, the generator named; the GLB container.
+fn finish(mut doc: Value, mut b: Builder) -> Vec<u8> {
     b.align();
     doc["bufferViews"] = Value::Array(b.views);
     doc["accessors"] = Value::Array(b.accessors);
     doc["buffers"] = json!([{"byteLength": b.bin.len()}]);
-    let used = doc["extensionsUsed"]
+    let mut used: Vec<Value> = doc["extensionsUsed"]
         .as_array()
         .cloned()
         .unwrap_or_default();
-    let mut used: Vec<Value> = used;
     for ext in ["MOZ_lightmap", "KHR_texture_transform"] {
         if !used.contains(&json!(ext)) {
             used.push(json!(ext));
@@ -453,7 +545,7 @@ pub fn baked_glb(
             json!(format!("radbake {}", env!("CARGO_PKG_VERSION"))),
         );
     }
-    Ok(glb(&doc, &b.bin))
+    glb(&doc, &b.bin)
 }
 
 /// Appends `v` to the array `doc[key]` (created if missing); returns its index.
