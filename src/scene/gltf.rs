@@ -163,6 +163,48 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
         base_dir,
         options,
     };
+    let bytes = read_scene_file(path, options)?;
+    let gltf = parse_checked(&ctx, &bytes)?;
+    let (buffers, mut files) = load_buffers(&ctx, &gltf)?;
+    check_accessors(&ctx, &gltf.document, &buffers)?;
+    check_memory(path, options, &gltf.document)?;
+
+    let mut scene = Scene::default();
+    // The document as written (for the baked glTF's round trip) and the
+    // bytes of every image it names.
+    let json = source_json(path, &bytes)?;
+    let images = image_bytes(&ctx, &gltf.document, &buffers, &mut files)?;
+    let mut image_cache: HashMap<usize, u32> = HashMap::new();
+    for material in gltf.document.materials() {
+        let m = import_material(&ctx, &material, &buffers, &mut scene, &mut image_cache)?;
+        scene.materials.push(m);
+    }
+    let fallback_material = scene.materials.len() as u32;
+    scene.materials.push(Material::fallback());
+    import_nodes(
+        &ctx,
+        &gltf.document,
+        &buffers,
+        fallback_material,
+        &mut scene,
+    )?;
+    if scene.instances.is_empty() {
+        return Err(Error::Empty {
+            path: path.to_path_buf(),
+            message: "the scene has no triangles to bake".into(),
+        });
+    }
+    scene.source = Some(super::SourceDocument {
+        json,
+        buffers,
+        images,
+        files,
+    });
+    Ok(scene)
+}
+
+/// The scene file's bytes: not a folder, not empty, within the size limit.
+fn read_scene_file(path: &Path, options: &LoadOptions) -> Result<Vec<u8>> {
     let unreadable = |e: std::io::Error| Error::Parse {
         path: path.to_path_buf(),
         message: format!("cannot read the file: {e}"),
@@ -189,25 +231,31 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             message: "the file is empty".into(),
         });
     }
+    Ok(bytes)
+}
+
+/// Parses the glTF, checks what the crate's validation would index
+/// unchecked, then validates.
+fn parse_checked(ctx: &Ctx, bytes: &[u8]) -> Result<gltf::Gltf> {
     let parse_error = |e: gltf::Error| Error::Parse {
-        path: path.to_path_buf(),
+        path: ctx.path.to_path_buf(),
         message: if bytes.starts_with(b"glTF") {
             format!("malformed or truncated GLB ({} bytes): {e}", bytes.len())
         } else {
             e.to_string()
         },
     };
-    // Parse, check what the crate's validation would index unchecked, then
-    // validate.
-    let raw = gltf::Gltf::from_slice_without_validation(&bytes).map_err(parse_error)?;
-    precheck_positions(&ctx, raw.document.as_json())?;
+    let raw = gltf::Gltf::from_slice_without_validation(bytes).map_err(parse_error)?;
+    precheck_positions(ctx, raw.document.as_json())?;
     let blob = raw.blob;
     let document = gltf::Document::from_json(raw.document.into_json()).map_err(parse_error)?;
-    let gltf = gltf::Gltf { document, blob };
-    let (buffers, mut files) = load_buffers(&ctx, &gltf)?;
-    check_accessors(&ctx, &gltf.document, &buffers)?;
+    Ok(gltf::Gltf { document, blob })
+}
+
+/// Refuses a scene whose estimated bake memory is over `options.max_memory`.
+fn check_memory(path: &Path, options: &LoadOptions, document: &gltf::Document) -> Result<()> {
     if let Some(limit) = options.max_memory {
-        let estimate = estimate_memory(&gltf.document);
+        let estimate = estimate_memory(document);
         if estimate > limit {
             return Err(Error::Limit(format!(
                 "{}: baking this scene needs an estimated {} MB ({} instanced triangles), over the {} MB memory limit",
@@ -218,27 +266,40 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             )));
         }
     }
+    Ok(())
+}
 
-    let mut scene = Scene::default();
-    // The document as written (for the baked glTF's round trip) and the
-    // bytes of every image it names.
+/// The glTF JSON document as written (for a `.glb`, its JSON chunk).
+fn source_json(path: &Path, bytes: &[u8]) -> Result<serde_json::Value> {
     let json_bytes: Vec<u8> = if bytes.starts_with(b"glTF") {
-        gltf::Glb::from_slice(&bytes)
+        gltf::Glb::from_slice(bytes)
             .map(|g| g.json.into_owned())
             .map_err(|e| Error::Parse {
                 path: path.to_path_buf(),
                 message: e.to_string(),
             })?
     } else {
-        bytes.clone()
+        bytes.to_vec()
     };
-    let json: serde_json::Value =
-        serde_json::from_slice(&json_bytes).map_err(|e| Error::Parse {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+    serde_json::from_slice(&json_bytes).map_err(|e| Error::Parse {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// An image's encoded bytes and MIME type.
+type EncodedImage = (Vec<u8>, String);
+
+/// Every image's encoded bytes and MIME type (external files confined to
+/// the scene's folder and added to `files`).
+fn image_bytes(
+    ctx: &Ctx,
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    files: &mut Vec<PathBuf>,
+) -> Result<Vec<Option<EncodedImage>>> {
     let mut images = Vec::new();
-    for image in gltf.document.images() {
+    for image in document.images() {
         let location = format!("images[{}]", image.index());
         images.push(match image.source() {
             gltf::image::Source::View { view, mime_type } => {
@@ -269,25 +330,28 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             }
         });
     }
-    let mut image_cache: HashMap<usize, u32> = HashMap::new();
-    for material in gltf.document.materials() {
-        let m = import_material(&ctx, &material, &buffers, &mut scene, &mut image_cache)?;
-        scene.materials.push(m);
-    }
-    let fallback_material = scene.materials.len() as u32;
-    scene.materials.push(Material::fallback());
+    Ok(images)
+}
 
-    // Meshes are imported on first use by a node.
+/// Walks the default scene's node hierarchy depth first, in document
+/// order: instances of meshes (each mesh imported on first use), lights
+/// and perspective cameras, with their world transforms.
+fn import_nodes(
+    ctx: &Ctx,
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    fallback_material: u32,
+    scene: &mut Scene,
+) -> Result<()> {
     let mut mesh_slot: HashMap<usize, u32> = HashMap::new();
-    let root_nodes: Vec<gltf::Node> = match gltf
-        .document
+    let root_nodes: Vec<gltf::Node> = match document
         .default_scene()
-        .or_else(|| gltf.document.scenes().next())
+        .or_else(|| document.scenes().next())
     {
         Some(s) => s.nodes().collect(),
         None => {
             return Err(Error::Empty {
-                path: path.to_path_buf(),
+                path: ctx.path.to_path_buf(),
                 message: "the glTF has no scene to bake".into(),
             })
         }
@@ -316,9 +380,9 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
                 Some(&s) => Some(s),
                 None => {
                     let m = import_mesh(
-                        &ctx,
+                        ctx,
                         &mesh,
-                        &buffers,
+                        buffers,
                         fallback_material,
                         &mut scene.stats,
                         &mut scene.warnings,
@@ -349,10 +413,10 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             }
         }
         if let Some(light) = node.light() {
-            check_light_json(&ctx, &gltf.document, light.index())?;
+            check_light_json(ctx, document, light.index())?;
             scene
                 .lights
-                .push(import_light(&ctx, &light, &world, &node_name)?);
+                .push(import_light(ctx, &light, &world, &node_name)?);
         }
         if let Some(camera) = node.camera() {
             if let gltf::camera::Projection::Perspective(p) = camera.projection() {
@@ -368,19 +432,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             stack.push((child, world, depth + 1));
         }
     }
-    if scene.instances.is_empty() {
-        return Err(Error::Empty {
-            path: path.to_path_buf(),
-            message: "the scene has no triangles to bake".into(),
-        });
-    }
-    scene.source = Some(super::SourceDocument {
-        json,
-        buffers,
-        images,
-        files,
-    });
-    Ok(scene)
+    Ok(())
 }
 
 /// Every buffer's bytes, and the external files read.
