@@ -330,10 +330,30 @@ struct Accum {
     emission: Vec3,
 }
 
-/// Rasterises every triangle of `geometry` into the atlas.
+/// Rasterises every triangle of `geometry` into the atlas: each instance's
+/// rectangle on its own (in parallel), then the covered cells numbered into
+/// texels in instance order.
 pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
-    let (w, h) = (atlas.width, atlas.height);
-    // Triangles of each instance are contiguous in `geometry`.
+    let ranges = instance_ranges(scene, geometry);
+    // Mipmaps for the footprint means, dropped when the stage ends.
+    let mips = crate::scene::Mips::new(scene.textures.len());
+    let per_instance: Vec<InstanceCells> = ranges
+        .par_iter()
+        .enumerate()
+        .map(|(inst, &range)| {
+            let mut grid = InstanceGrid::new(atlas, inst);
+            for t in range.0..range.1 {
+                grid.cover(scene, &mips, geometry, t);
+            }
+            grid.cells()
+        })
+        .collect();
+    assemble(scene, atlas, geometry, per_instance)
+}
+
+/// Each instance's triangles `start..end` (they are contiguous in
+/// `geometry`).
+fn instance_ranges(scene: &Scene, geometry: &Geometry) -> Vec<(usize, usize)> {
     let mut ranges = vec![(0usize, 0usize); scene.instances.len()];
     for (t, &i) in geometry.instance.iter().enumerate() {
         let r = &mut ranges[i as usize];
@@ -342,114 +362,150 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
         }
         r.1 = t + 1;
     }
-    // Mipmaps for the footprint means, dropped when the stage ends.
-    let mips = crate::scene::Mips::new(scene.textures.len());
-    // Per instance: covered cells (x, y, sums), unmapped triangles, overlaps.
-    type InstanceCells = (Vec<(u32, u32, Accum, Vec<Piece>)>, u64, u64);
-    let per_instance: Vec<InstanceCells> = ranges
-        .par_iter()
-        .enumerate()
-        .map(|(inst, &(start, end))| {
-            let rect = atlas.instances[inst];
-            let x0 = (rect.min[0] * w as f32).floor().max(0.0) as u32;
-            let y0 = (rect.min[1] * h as f32).floor().max(0.0) as u32;
-            let x1 = ((rect.max[0] * w as f32).ceil() as u32).min(w);
-            let y1 = ((rect.max[1] * h as f32).ceil() as u32).min(h);
-            let (rw, rh) = (x1.saturating_sub(x0), y1.saturating_sub(y0));
-            let mut grid = vec![Accum::default(); (rw * rh) as usize];
-            let mut pieces: Vec<(u32, Piece)> = Vec::new();
-            let mut unmapped = 0u64;
-            let mut overlaps = 0u64;
-            for t in start..end {
-                let lm = geometry.uv_lm[t];
-                let lm_area = 0.5 * (lm[1] - lm[0]).perp_dot(lm[2] - lm[0]).abs();
-                if lm_area <= 1e-10 || geometry.chart[t] == u32::MAX {
-                    unmapped += 1;
+    ranges
+}
+
+/// One instance's covered cells (x, y, sums, pieces), its unmapped
+/// triangles and chart overlaps.
+type InstanceCells = (Vec<(u32, u32, Accum, Vec<Piece>)>, u64, u64);
+
+/// The cells of one instance's atlas rectangle, as its triangles cover
+/// them.
+struct InstanceGrid {
+    /// The rectangle in atlas texels: [x0, x1) × [y0, y1).
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+    rw: u32,
+    rh: u32,
+    grid: Vec<Accum>,
+    /// (cell index, piece), in triangle order.
+    pieces: Vec<(u32, Piece)>,
+    unmapped: u64,
+    overlaps: u64,
+}
+
+impl InstanceGrid {
+    fn new(atlas: &Atlas, inst: usize) -> Self {
+        let (w, h) = (atlas.width, atlas.height);
+        let rect = atlas.instances[inst];
+        let x0 = (rect.min[0] * w as f32).floor().max(0.0) as u32;
+        let y0 = (rect.min[1] * h as f32).floor().max(0.0) as u32;
+        let x1 = ((rect.max[0] * w as f32).ceil() as u32).min(w);
+        let y1 = ((rect.max[1] * h as f32).ceil() as u32).min(h);
+        let (rw, rh) = (x1.saturating_sub(x0), y1.saturating_sub(y0));
+        InstanceGrid {
+            x0,
+            y0,
+            x1,
+            y1,
+            rw,
+            rh,
+            grid: vec![Accum::default(); (rw * rh) as usize],
+            pieces: Vec::new(),
+            unmapped: 0,
+            overlaps: 0,
+        }
+    }
+
+    /// Adds triangle `t`'s exact coverage of every texel it touches: the
+    /// clipped area, centroid, normal, footprint-mean albedo and emission,
+    /// and one piece per texel. Cut-out (alpha-masked) parts cover nothing.
+    fn cover(&mut self, scene: &Scene, mips: &crate::scene::Mips, geometry: &Geometry, t: usize) {
+        let lm = geometry.uv_lm[t];
+        let lm_area = 0.5 * (lm[1] - lm[0]).perp_dot(lm[2] - lm[0]).abs();
+        if lm_area <= 1e-10 || geometry.chart[t] == u32::MAX {
+            self.unmapped += 1;
+            return;
+        }
+        let world_per_texel = geometry.area[t] / lm_area;
+        let lo = lm[0].min(lm[1]).min(lm[2]).floor();
+        let hi = lm[0].max(lm[1]).max(lm[2]).ceil();
+        let tx0 = (lo.x as i64).max(self.x0 as i64);
+        let ty0 = (lo.y as i64).max(self.y0 as i64);
+        let tx1 = (hi.x as i64).min(self.x1 as i64);
+        let ty1 = (hi.y as i64).min(self.y1 as i64);
+        let mut covered = false;
+        for y in ty0..ty1 {
+            for x in tx0..tx1 {
+                let Some((cov, centroid)) = clip_to_texel(&lm, x as f32, y as f32) else {
+                    continue;
+                };
+                let bary = barycentric(&lm, centroid);
+                let (u, v) = (bary.y, bary.z);
+                let material = geometry.material[t];
+                let uv0 = geometry.uv0_at(t as u32, u, v);
+                if scene.is_cut_out(material, uv0) {
                     continue;
                 }
-                let world_per_texel = geometry.area[t] / lm_area;
-                let lo = lm[0].min(lm[1]).min(lm[2]).floor();
-                let hi = lm[0].max(lm[1]).max(lm[2]).ceil();
-                let tx0 = (lo.x as i64).max(x0 as i64);
-                let ty0 = (lo.y as i64).max(y0 as i64);
-                let tx1 = (hi.x as i64).min(x1 as i64);
-                let ty1 = (hi.y as i64).min(y1 as i64);
-                let mut covered = false;
-                for y in ty0..ty1 {
-                    for x in tx0..tx1 {
-                        let Some((cov, centroid)) = clip_to_texel(&lm, x as f32, y as f32) else {
-                            continue;
-                        };
-                        let bary = barycentric(&lm, centroid);
-                        let (u, v) = (bary.y, bary.z);
-                        let material = geometry.material[t];
-                        let uv0 = geometry.uv0_at(t as u32, u, v);
-                        if scene.is_cut_out(material, uv0) {
-                            continue;
-                        }
-                        covered = true;
-                        let a = cov * world_per_texel;
-                        let index = (y as u32 - y0) * rw + (x as u32 - x0);
-                        pieces.push((
-                            index,
-                            Piece {
-                                tri: t as u32,
-                                u,
-                                v,
-                                area: a,
-                            },
-                        ));
-                        let cell = &mut grid[index as usize];
-                        if cell.area > 0.0 && cell.chart != geometry.chart[t] {
-                            overlaps += 1;
-                        }
-                        if cov > cell.best_cov {
-                            cell.best_cov = cov;
-                            cell.tri = t as u32;
-                            cell.chart = geometry.chart[t];
-                        }
-                        cell.area += a;
-                        cell.p += geometry.point(t as u32, u, v) * a;
-                        cell.n += geometry.ng_ws[t] * a;
-                        let (albedo, emission) =
-                            footprint_mean(scene, &mips, material, geometry, t as u32, &lm, [x, y])
-                                .unwrap_or_else(|| {
-                                    (
-                                        scene.albedo_at(material, uv0).0,
-                                        scene.emission_at(material, uv0),
-                                    )
-                                });
-                        cell.albedo += albedo * a;
-                        cell.emission += emission * a;
-                    }
+                covered = true;
+                let a = cov * world_per_texel;
+                let index = (y as u32 - self.y0) * self.rw + (x as u32 - self.x0);
+                self.pieces.push((
+                    index,
+                    Piece {
+                        tri: t as u32,
+                        u,
+                        v,
+                        area: a,
+                    },
+                ));
+                let cell = &mut self.grid[index as usize];
+                if cell.area > 0.0 && cell.chart != geometry.chart[t] {
+                    self.overlaps += 1;
                 }
-                if !covered {
-                    unmapped += 1;
+                if cov > cell.best_cov {
+                    cell.best_cov = cov;
+                    cell.tri = t as u32;
+                    cell.chart = geometry.chart[t];
                 }
+                cell.area += a;
+                cell.p += geometry.point(t as u32, u, v) * a;
+                cell.n += geometry.ng_ws[t] * a;
+                let (albedo, emission) =
+                    footprint_mean(scene, mips, material, geometry, t as u32, &lm, [x, y])
+                        .unwrap_or_else(|| {
+                            (
+                                scene.albedo_at(material, uv0).0,
+                                scene.emission_at(material, uv0),
+                            )
+                        });
+                cell.albedo += albedo * a;
+                cell.emission += emission * a;
             }
-            // Pieces grouped by cell, in triangle order within a cell.
-            pieces.sort_by_key(|p| p.0);
-            let mut next = pieces.iter().peekable();
-            let mut out = Vec::new();
-            for y in 0..rh {
-                for x in 0..rw {
-                    let index = y * rw + x;
-                    let mut mine = Vec::new();
-                    while let Some(&(_, p)) = next.next_if(|p| p.0 == index) {
-                        mine.push(p);
-                    }
-                    let c = grid[index as usize];
-                    if c.area > 0.0 {
-                        out.push((x0 + x, y0 + y, c, mine));
-                    }
-                }
-            }
-            (out, unmapped, overlaps)
-        })
-        .collect();
+        }
+        if !covered {
+            self.unmapped += 1;
+        }
+    }
 
-    // Owner ids: each instance's charts numbered after the previous
-    // instance's (its mesh's highest chart + 1).
+    /// The covered cells in row order, each with its pieces (in triangle
+    /// order within a cell).
+    fn cells(mut self) -> InstanceCells {
+        self.pieces.sort_by_key(|p| p.0);
+        let mut next = self.pieces.iter().peekable();
+        let mut out = Vec::new();
+        for y in 0..self.rh {
+            for x in 0..self.rw {
+                let index = y * self.rw + x;
+                let mut mine = Vec::new();
+                while let Some(&(_, p)) = next.next_if(|p| p.0 == index) {
+                    mine.push(p);
+                }
+                let c = self.grid[index as usize];
+                if c.area > 0.0 {
+                    out.push((self.x0 + x, self.y0 + y, c, mine));
+                }
+            }
+        }
+        (out, self.unmapped, self.overlaps)
+    }
+}
+
+/// Owner ids: each instance's charts numbered after the previous
+/// instance's (its mesh's highest chart + 1).
+fn owner_bases(scene: &Scene, atlas: &Atlas) -> Vec<u32> {
     let charts_of_mesh: Vec<u64> = atlas
         .meshes
         .iter()
@@ -467,9 +523,20 @@ pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
         owner_base.push(next_owner.min(u32::MAX as u64) as u32);
         next_owner += charts_of_mesh.get(inst.mesh as usize).copied().unwrap_or(0);
     }
+    owner_base
+}
+
+/// The texels, numbered in instance order, and the page index.
+fn assemble(
+    scene: &Scene,
+    atlas: &Atlas,
+    geometry: &Geometry,
+    per_instance: Vec<InstanceCells>,
+) -> Texels {
+    let (w, h) = (atlas.width, atlas.height);
     let mut tx = Texels {
         index: vec![vec![EMPTY_ENTRY; (w * h) as usize]; atlas.page_count.max(1) as usize],
-        owner_base,
+        owner_base: owner_bases(scene, atlas),
         width: w,
         height: h,
         ..Default::default()
