@@ -110,12 +110,20 @@ fn check_chart_extent(scene: &Scene, scales: &[Vec<f32>], density: f32) -> Resul
 /// `--uv existing` is asked for and a mesh has no `TEXCOORD_1`.
 pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
     let mut warnings = Vec::new();
-    // Instances of each mesh, and their scales.
+    let (mesh_instances, scales) = instances_by_mesh(scene);
+    let density = fit_density(scene, &scales, config, &mut warnings);
+    check_chart_extent(scene, &scales, density)?;
+    let out = run_unwrapper(scene, &scales, density, config)?;
+    Ok(to_atlas(scene, &mesh_instances, out, warnings))
+}
+
+/// Each mesh's instances and their uniform scales.
+fn instances_by_mesh(scene: &Scene) -> (Vec<Vec<usize>>, Vec<Vec<f32>>) {
     let mut mesh_instances: Vec<Vec<usize>> = vec![Vec::new(); scene.meshes.len()];
     for (i, inst) in scene.instances.iter().enumerate() {
         mesh_instances[inst.mesh as usize].push(i);
     }
-    let scales: Vec<Vec<f32>> = mesh_instances
+    let scales = mesh_instances
         .iter()
         .map(|list| {
             list.iter()
@@ -123,8 +131,17 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
                 .collect()
         })
         .collect();
+    (mesh_instances, scales)
+}
 
-    // Density: lowered when the surface would need more than max_texels.
+/// The texel density: `texels_per_meter`, lowered (with a warning) when the
+/// surface would need more than `max_texels`.
+fn fit_density(
+    scene: &Scene,
+    scales: &[Vec<f32>],
+    config: &BakeConfig,
+    warnings: &mut Vec<String>,
+) -> f32 {
     let mut area = 0.0f64;
     for (m, mesh) in scene.meshes.iter().enumerate() {
         let local: f64 = mesh
@@ -140,21 +157,33 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
             .map(|s| local * (*s as f64).powi(2))
             .sum::<f64>();
     }
-    let mut density = config.texels_per_meter;
+    let density = config.texels_per_meter;
     // Packing leaves about a third of the atlas empty.
     let estimate = area * (density as f64).powi(2) / 0.6;
-    if estimate > config.max_texels as f64 {
-        let lowered = (config.max_texels as f64 * 0.6 / area).sqrt() as f32;
-        warnings.push(format!(
-            "texels_per_meter {density} would need ~{:.1} M texels for {area:.0} m² of surface; lowered to {lowered:.2} to stay within max_texels = {} (set either to choose)",
-            estimate / 1e6,
-            config.max_texels
-        ));
-        density = lowered;
+    if estimate <= config.max_texels as f64 {
+        return density;
     }
+    let lowered = (config.max_texels as f64 * 0.6 / area).sqrt() as f32;
+    warnings.push(format!(
+        "texels_per_meter {density} would need ~{:.1} M texels for {area:.0} m² of surface; lowered to {lowered:.2} to stay within max_texels = {} (set either to choose)",
+        estimate / 1e6,
+        config.max_texels
+    ));
+    lowered
+}
 
-    check_chart_extent(scene, &scales, density)?;
-
+/// `uvunwrap` over every mesh (existing `TEXCOORD_1` repacked with `uv =
+/// existing`), at `density`.
+///
+/// # Errors
+/// A mesh without `TEXCOORD_1` under `uv = existing`; the unwrapper's
+/// failure (or panic, which is caught).
+fn run_unwrapper(
+    scene: &Scene,
+    scales: &[Vec<f32>],
+    density: f32,
+    config: &BakeConfig,
+) -> Result<uvunwrap::Atlas> {
     let positions: Vec<Vec<[f32; 3]>> = scene
         .meshes
         .iter()
@@ -207,7 +236,7 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
     };
     // A safety net: `uvunwrap` has been seen to panic on geometry the checks
     // above do not catch (found by fuzzing); turn that into an error.
-    let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         uvunwrap::generate(&inputs, &options)
     }))
     .map_err(|panic| {
@@ -218,8 +247,17 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
             .unwrap_or_default();
         Error::Unwrap(format!("the unwrapper failed on this geometry ({why})"))
     })?
-    .map_err(|e| Error::Unwrap(e.to_string()))?;
+    .map_err(|e| Error::Unwrap(e.to_string()))
+}
 
+/// The unwrapper's output as radbake's [`Atlas`]: per mesh its vertices'
+/// UVs, charts and source vertices; per instance its page rectangle.
+fn to_atlas(
+    scene: &Scene,
+    mesh_instances: &[Vec<usize>],
+    out: uvunwrap::Atlas,
+    warnings: Vec<String>,
+) -> Atlas {
     let mut instances = vec![
         InstanceRect {
             page: 0,
@@ -253,7 +291,7 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
                 .collect(),
         });
     }
-    Ok(Atlas {
+    Atlas {
         width: out.width,
         height: out.height,
         page_count: out.page_count,
@@ -263,7 +301,7 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
         meshes,
         instances,
         warnings,
-    })
+    }
 }
 
 #[cfg(test)]
