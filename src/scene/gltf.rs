@@ -674,7 +674,6 @@ fn import_mesh(
     stats: &mut ImportStats,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh> {
-    use gltf::accessor::{DataType as T, Dimensions as D};
     let mut out = Mesh {
         name: mesh
             .name()
@@ -698,93 +697,15 @@ fn import_mesh(
             ));
             continue;
         }
-        let pos_acc = prim
-            .get(&gltf::Semantic::Positions)
-            .ok_or_else(|| ctx.invalid(&location, "has no POSITION attribute"))?;
-        expect_type(
-            ctx,
-            &pos_acc,
-            &format!("{location}.attributes.POSITION"),
-            &[D::Vec3],
-            &[T::F32],
-        )?;
-        if let Some(a) = prim.get(&gltf::Semantic::Normals) {
-            expect_type(
-                ctx,
-                &a,
-                &format!("{location}.attributes.NORMAL"),
-                &[D::Vec3],
-                &[T::F32],
-            )?;
-        }
-        for set in 0..2 {
-            if let Some(a) = prim.get(&gltf::Semantic::TexCoords(set)) {
-                expect_type(
-                    ctx,
-                    &a,
-                    &format!("{location}.attributes.TEXCOORD_{set}"),
-                    &[D::Vec2],
-                    &[T::F32, T::U8, T::U16],
-                )?;
-            }
-        }
-        if let Some(a) = prim.indices() {
-            expect_type(
-                ctx,
-                &a,
-                &format!("{location}.indices"),
-                &[D::Scalar],
-                &[T::U8, T::U16, T::U32],
-            )?;
-        }
-        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
-        let positions: Vec<Vec3> = reader
-            .read_positions()
-            .ok_or_else(|| {
-                ctx.invalid(format!("{location}.attributes.POSITION"), "cannot be read")
-            })?
-            .map(Vec3::from)
-            .collect();
-        if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
-            return Err(ctx.invalid(
-                format!("{location}.attributes.POSITION"),
-                format!("vertex {i} is not finite ({})", positions[i]),
-            ));
-        }
+        check_attribute_types(ctx, &prim, &location)?;
+        let PrimitiveData {
+            positions,
+            normals,
+            uv0,
+            uv1: prim_uv1,
+            indices,
+        } = read_primitive(ctx, &prim, buffers, &location)?;
         let vcount = positions.len();
-        let normals: Option<Vec<Vec3>> =
-            reader.read_normals().map(|it| it.map(Vec3::from).collect());
-        if let Some(n) = &normals {
-            if let Some(i) = n.iter().position(|v| !v.is_finite()) {
-                return Err(ctx.invalid(
-                    format!("{location}.attributes.NORMAL"),
-                    format!("normal {i} is not finite ({})", n[i]),
-                ));
-            }
-        }
-        let read_uv = |set: u32| -> Option<Vec<Vec2>> {
-            reader
-                .read_tex_coords(set)
-                .map(|it| it.into_f32().map(Vec2::from).collect())
-        };
-        let uv0 = read_uv(0).unwrap_or_else(|| vec![Vec2::ZERO; vcount]);
-        let prim_uv1 = read_uv(1);
-        let indices: Vec<u32> = match reader.read_indices() {
-            Some(it) => it.into_u32().collect(),
-            None => (0..vcount as u32).collect(),
-        };
-        if let Some(&bad) = indices.iter().find(|&&i| i as usize >= vcount) {
-            return Err(ctx.invalid(
-                format!("{location}.indices"),
-                format!("index {bad} is not below the vertex count {vcount}"),
-            ));
-        }
-        if uv0.len() != vcount
-            || prim_uv1.as_ref().is_some_and(|u| u.len() != vcount)
-            || normals.as_ref().is_some_and(|n| n.len() != vcount)
-        {
-            return Err(ctx.invalid(&location, "attributes have different counts"));
-        }
         if let Some(problem) = malformed(mode, indices.len()) {
             stats.malformed_primitives += 1;
             warnings.push(format!("{location} (mesh `{}`): {problem}", out.name));
@@ -843,6 +764,123 @@ fn import_mesh(
         out.uv1 = Some(uv1);
     }
     Ok(out)
+}
+
+/// Checks the types of a primitive's attributes and indices against what
+/// glTF allows (POSITION required).
+fn check_attribute_types(ctx: &Ctx, prim: &gltf::Primitive, location: &str) -> Result<()> {
+    use gltf::accessor::{DataType as T, Dimensions as D};
+    let pos_acc = prim
+        .get(&gltf::Semantic::Positions)
+        .ok_or_else(|| ctx.invalid(location, "has no POSITION attribute"))?;
+    expect_type(
+        ctx,
+        &pos_acc,
+        &format!("{location}.attributes.POSITION"),
+        &[D::Vec3],
+        &[T::F32],
+    )?;
+    if let Some(a) = prim.get(&gltf::Semantic::Normals) {
+        expect_type(
+            ctx,
+            &a,
+            &format!("{location}.attributes.NORMAL"),
+            &[D::Vec3],
+            &[T::F32],
+        )?;
+    }
+    for set in 0..2 {
+        if let Some(a) = prim.get(&gltf::Semantic::TexCoords(set)) {
+            expect_type(
+                ctx,
+                &a,
+                &format!("{location}.attributes.TEXCOORD_{set}"),
+                &[D::Vec2],
+                &[T::F32, T::U8, T::U16],
+            )?;
+        }
+    }
+    if let Some(a) = prim.indices() {
+        expect_type(
+            ctx,
+            &a,
+            &format!("{location}.indices"),
+            &[D::Scalar],
+            &[T::U8, T::U16, T::U32],
+        )?;
+    }
+    Ok(())
+}
+
+/// A triangle primitive's vertex attributes and indices, as read.
+struct PrimitiveData {
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    uv0: Vec<Vec2>,
+    uv1: Option<Vec<Vec2>>,
+    indices: Vec<u32>,
+}
+
+/// Reads a primitive's attributes and indices: positions and normals
+/// finite, indices below the vertex count, every attribute the same count.
+fn read_primitive(
+    ctx: &Ctx,
+    prim: &gltf::Primitive,
+    buffers: &[Vec<u8>],
+    location: &str,
+) -> Result<PrimitiveData> {
+    let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+    let positions: Vec<Vec3> = reader
+        .read_positions()
+        .ok_or_else(|| ctx.invalid(format!("{location}.attributes.POSITION"), "cannot be read"))?
+        .map(Vec3::from)
+        .collect();
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(ctx.invalid(
+            format!("{location}.attributes.POSITION"),
+            format!("vertex {i} is not finite ({})", positions[i]),
+        ));
+    }
+    let vcount = positions.len();
+    let normals: Option<Vec<Vec3>> = reader.read_normals().map(|it| it.map(Vec3::from).collect());
+    if let Some(n) = &normals {
+        if let Some(i) = n.iter().position(|v| !v.is_finite()) {
+            return Err(ctx.invalid(
+                format!("{location}.attributes.NORMAL"),
+                format!("normal {i} is not finite ({})", n[i]),
+            ));
+        }
+    }
+    let read_uv = |set: u32| -> Option<Vec<Vec2>> {
+        reader
+            .read_tex_coords(set)
+            .map(|it| it.into_f32().map(Vec2::from).collect())
+    };
+    let uv0 = read_uv(0).unwrap_or_else(|| vec![Vec2::ZERO; vcount]);
+    let prim_uv1 = read_uv(1);
+    let indices: Vec<u32> = match reader.read_indices() {
+        Some(it) => it.into_u32().collect(),
+        None => (0..vcount as u32).collect(),
+    };
+    if let Some(&bad) = indices.iter().find(|&&i| i as usize >= vcount) {
+        return Err(ctx.invalid(
+            format!("{location}.indices"),
+            format!("index {bad} is not below the vertex count {vcount}"),
+        ));
+    }
+    if uv0.len() != vcount
+        || prim_uv1.as_ref().is_some_and(|u| u.len() != vcount)
+        || normals.as_ref().is_some_and(|n| n.len() != vcount)
+    {
+        return Err(ctx.invalid(location, "attributes have different counts"));
+    }
+    Ok(PrimitiveData {
+        positions,
+        normals,
+        uv0,
+        uv1: prim_uv1,
+        indices,
+    })
 }
 
 /// What is wrong with a triangle primitive of `count` indices (or
