@@ -132,10 +132,10 @@ fn no_light_through_a_zero_thickness_wall() {
 /// Not yet met (run with `--ignored`; measured 2026-12-02, 16 texels/m):
 /// - a 0.2 m thick wall, separate meshes: room B's brightest texel
 ///   8.7e-4 of room A's floor, mean 8.2e-5, stitched or not. The floors
-///   and ceilings run under and over the wall; texels partly under the
-///   wall cast gather rays from points inside it, which reach the other
-///   room's buried ceiling strip, whose first-pass value was filled from
-///   its lit neighbours.
+///   and ceilings run under and over the wall; patches and texels partly
+///   under the wall cast rays from points inside it, which reach the other
+///   room's part of the ceiling strip over the wall (in the patch solution
+///   already: with the final gather off the leak remains).
 /// - one mesh, zero thickness: 1.9e-2 (mean 5.2e-4); one mesh, 0.2 m:
 ///   4.8e-4 (mean 5.9e-5).
 #[test]
