@@ -125,101 +125,8 @@ impl Renderer {
         camera: Camera,
         settings: Settings,
     ) -> Renderer {
-        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("preview.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(gpu::SHADER.into()),
-        });
-        let uniform = |binding, visibility| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let texture = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-            count: None,
-        };
-        let sampler_entry = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-            count: None,
-        };
-        let globals_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("globals"),
-            entries: &[uniform(
-                0,
-                wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-            )],
-        });
-        let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("material"),
-            entries: &[
-                uniform(0, wgpu::ShaderStages::FRAGMENT),
-                texture(1),
-                sampler_entry(2),
-                texture(3),
-                sampler_entry(4),
-                texture(5),
-                sampler_entry(6),
-                texture(7),
-            ],
-        });
-        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("preview"),
-            bind_group_layouts: &[Some(&globals_layout), Some(&material_layout)],
-            immediate_size: 0,
-        });
-        let pipeline = |cull_mode| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("preview"),
-                layout: Some(&layout),
-                vertex: wgpu::VertexState {
-                    module: &shader,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(Vertex::layout())],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &shader,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let pipelines = [pipeline(Some(wgpu::Face::Back)), pipeline(None)];
-
+        let (globals_layout, material_layout) = bind_group_layouts(device);
+        let pipelines = pipelines(device, &globals_layout, &material_layout, format);
         let globals = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("globals"),
             size: std::mem::size_of::<Globals>() as u64,
@@ -234,125 +141,8 @@ impl Renderer {
                 resource: globals.as_entire_binding(),
             }],
         });
-
-        // Textures: the scene's (sRGB base colour / emissive), the lightmap
-        // pages (sRGB PNG), and a white texel for "none".
-        let white = srgb_texture(device, queue, "white", 1, 1, &[255; 4]);
-        let clamp = sampler(device, Wrap::Clamp, Wrap::Clamp);
-        let scene_textures: Vec<(wgpu::TextureView, wgpu::Sampler)> = model
-            .scene
-            .textures
-            .iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let view = srgb_texture(
-                    device,
-                    queue,
-                    &format!("texture{i}"),
-                    t.width,
-                    t.height,
-                    bytemuck::cast_slice(&t.rgba),
-                );
-                (view, sampler(device, t.wrap_s, t.wrap_t))
-            })
-            .collect();
-        let lightmaps: Vec<wgpu::TextureView> = model
-            .lightmaps
-            .iter()
-            .enumerate()
-            .map(|(i, l)| {
-                srgb_texture(
-                    device,
-                    queue,
-                    &format!("lightmap{i}"),
-                    l.width,
-                    l.height,
-                    &l.rgba,
-                )
-            })
-            .collect();
-        // Debug maps (patches, validity; not colour data), and a
-        // transparent texel for "none".
-        let no_debug = rgba8_texture(device, queue, "no debug map", (1, 1), &[0; 4], false);
-        let debug_maps: Vec<Option<wgpu::TextureView>> = model
-            .debug_maps
-            .iter()
-            .enumerate()
-            .map(|(i, d)| {
-                d.as_ref().map(|d| {
-                    rgba8_texture(
-                        device,
-                        queue,
-                        &format!("debug{i}"),
-                        (d.width, d.height),
-                        &d.rgba,
-                        false,
-                    )
-                })
-            })
-            .collect();
-        let material_groups = model
-            .materials
-            .iter()
-            .enumerate()
-            .map(|(i, m)| {
-                let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(&format!("material{i}")),
-                    contents: bytemuck::bytes_of(&m.gpu),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
-                let tex = |t: Option<u32>| {
-                    t.and_then(|t| scene_textures.get(t as usize))
-                        .map_or((&white, &clamp), |(v, s)| (v, s))
-                };
-                let (base_view, base_sampler) = tex(m.base_texture);
-                let (emissive_view, emissive_sampler) = tex(m.emissive_texture);
-                let lightmap_view = m.lightmap.and_then(|p| lightmaps.get(p)).unwrap_or(&white);
-                let debug_view = m
-                    .lightmap
-                    .and_then(|p| debug_maps.get(p))
-                    .and_then(Option::as_ref)
-                    .unwrap_or(&no_debug);
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some(&format!("material{i}")),
-                    layout: &material_layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: buffer.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: wgpu::BindingResource::TextureView(base_view),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: wgpu::BindingResource::Sampler(base_sampler),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 3,
-                            resource: wgpu::BindingResource::TextureView(emissive_view),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 4,
-                            resource: wgpu::BindingResource::Sampler(emissive_sampler),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 5,
-                            resource: wgpu::BindingResource::TextureView(lightmap_view),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 6,
-                            resource: wgpu::BindingResource::Sampler(&clamp),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 7,
-                            resource: wgpu::BindingResource::TextureView(debug_view),
-                        },
-                    ],
-                })
-            })
-            .collect();
+        let textures = Textures::upload(device, queue, model);
+        let material_groups = material_groups(device, &material_layout, model, &textures);
         let vertices = (!model.vertices.is_empty()).then(|| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vertices"),
@@ -589,6 +379,274 @@ pub fn read_back(
         }
     }
     Ok(out)
+}
+
+/// The bind group layouts: per frame (globals) and per material (its
+/// uniform, base colour, emissive, lightmap and debug map with samplers).
+fn bind_group_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::BindGroupLayout) {
+    let uniform = |binding, visibility| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let texture = |binding| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    };
+    let sampler_entry = |binding| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+        count: None,
+    };
+    let globals_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("globals"),
+        entries: &[uniform(
+            0,
+            wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+        )],
+    });
+    let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("material"),
+        entries: &[
+            uniform(0, wgpu::ShaderStages::FRAGMENT),
+            texture(1),
+            sampler_entry(2),
+            texture(3),
+            sampler_entry(4),
+            texture(5),
+            sampler_entry(6),
+            texture(7),
+        ],
+    });
+    (globals_layout, material_layout)
+}
+
+/// The render pipelines: back faces culled, and not (double-sided).
+fn pipelines(
+    device: &wgpu::Device,
+    globals_layout: &wgpu::BindGroupLayout,
+    material_layout: &wgpu::BindGroupLayout,
+    format: wgpu::TextureFormat,
+) -> [wgpu::RenderPipeline; 2] {
+    let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("preview.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(gpu::SHADER.into()),
+    });
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("preview"),
+        bind_group_layouts: &[Some(globals_layout), Some(material_layout)],
+        immediate_size: 0,
+    });
+    let pipeline = |cull_mode| {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("preview"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(Vertex::layout())],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    };
+    [pipeline(Some(wgpu::Face::Back)), pipeline(None)]
+}
+
+/// Every texture a material may bind, on the GPU.
+struct Textures {
+    /// A white texel for "none".
+    white: wgpu::TextureView,
+    clamp: wgpu::Sampler,
+    /// The scene's textures (sRGB base colour / emissive) with their samplers.
+    scene: Vec<(wgpu::TextureView, wgpu::Sampler)>,
+    /// The lightmap pages (sRGB PNG).
+    lightmaps: Vec<wgpu::TextureView>,
+    /// A transparent texel for "no debug map".
+    no_debug: wgpu::TextureView,
+    /// Debug maps (patches, validity; not colour data) per page.
+    debug: Vec<Option<wgpu::TextureView>>,
+}
+
+impl Textures {
+    fn upload(device: &wgpu::Device, queue: &wgpu::Queue, model: &Model) -> Textures {
+        // Textures: the scene's (sRGB base colour / emissive), the lightmap
+        // pages (sRGB PNG), and a white texel for "none".
+        let white = srgb_texture(device, queue, "white", 1, 1, &[255; 4]);
+        let clamp = sampler(device, Wrap::Clamp, Wrap::Clamp);
+        let scene: Vec<(wgpu::TextureView, wgpu::Sampler)> = model
+            .scene
+            .textures
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let view = srgb_texture(
+                    device,
+                    queue,
+                    &format!("texture{i}"),
+                    t.width,
+                    t.height,
+                    bytemuck::cast_slice(&t.rgba),
+                );
+                (view, sampler(device, t.wrap_s, t.wrap_t))
+            })
+            .collect();
+        let lightmaps: Vec<wgpu::TextureView> = model
+            .lightmaps
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                srgb_texture(
+                    device,
+                    queue,
+                    &format!("lightmap{i}"),
+                    l.width,
+                    l.height,
+                    &l.rgba,
+                )
+            })
+            .collect();
+        // Debug maps (patches, validity; not colour data), and a
+        // transparent texel for "none".
+        let no_debug = rgba8_texture(device, queue, "no debug map", (1, 1), &[0; 4], false);
+        let debug: Vec<Option<wgpu::TextureView>> = model
+            .debug_maps
+            .iter()
+            .enumerate()
+            .map(|(i, d)| {
+                d.as_ref().map(|d| {
+                    rgba8_texture(
+                        device,
+                        queue,
+                        &format!("debug{i}"),
+                        (d.width, d.height),
+                        &d.rgba,
+                        false,
+                    )
+                })
+            })
+            .collect();
+        Textures {
+            white,
+            clamp,
+            scene,
+            lightmaps,
+            no_debug,
+            debug,
+        }
+    }
+}
+
+/// One bind group per material: its uniform and textures (white, or the
+/// transparent texel, where it has none).
+fn material_groups(
+    device: &wgpu::Device,
+    material_layout: &wgpu::BindGroupLayout,
+    model: &Model,
+    tx: &Textures,
+) -> Vec<wgpu::BindGroup> {
+    model
+        .materials
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(&format!("material{i}")),
+                contents: bytemuck::bytes_of(&m.gpu),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let tex = |t: Option<u32>| {
+                t.and_then(|t| tx.scene.get(t as usize))
+                    .map_or((&tx.white, &tx.clamp), |(v, s)| (v, s))
+            };
+            let (base_view, base_sampler) = tex(m.base_texture);
+            let (emissive_view, emissive_sampler) = tex(m.emissive_texture);
+            let lightmap_view = m
+                .lightmap
+                .and_then(|p| tx.lightmaps.get(p))
+                .unwrap_or(&tx.white);
+            let debug_view = m
+                .lightmap
+                .and_then(|p| tx.debug.get(p))
+                .and_then(Option::as_ref)
+                .unwrap_or(&tx.no_debug);
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(&format!("material{i}")),
+                layout: material_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: buffer.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::TextureView(base_view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::Sampler(base_sampler),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: wgpu::BindingResource::TextureView(emissive_view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 4,
+                        resource: wgpu::BindingResource::Sampler(emissive_sampler),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 5,
+                        resource: wgpu::BindingResource::TextureView(lightmap_view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 6,
+                        resource: wgpu::BindingResource::Sampler(&tx.clamp),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 7,
+                        resource: wgpu::BindingResource::TextureView(debug_view),
+                    },
+                ],
+            })
+        })
+        .collect()
 }
 
 /// A single-sample 2D texture of `size` to render into.
