@@ -40,8 +40,14 @@ pub fn build(s: &Surfaces, page_count: u32, light: &TexelLight, config: &BakeCon
     let invalid_texels = light.valid.iter().filter(|v| !**v).count() as u64;
     let mut lightmaps = lightmap::build(texels, values, page_count, dilate);
     let seam_samples = if config.stitch_seams {
-        let valid = ValidityGrid::new(texels, page_count, &light.valid);
-        seams::find(s.geometry, s.rays, &|page, uv| valid.at(page, uv))
+        // A seam sample off every texel (padding) does not veto stitching.
+        let valid = |page: u32, uv: Vec2| {
+            let (x, y) = (uv.x.floor() as i64, uv.y.floor() as i64);
+            texels
+                .at(page, x, y)
+                .is_none_or(|t| light.valid[t as usize])
+        };
+        seams::find(s.geometry, s.rays, &valid)
     } else {
         Vec::new()
     };
@@ -70,40 +76,6 @@ pub fn build(s: &Surfaces, page_count: u32, light: &TexelLight, config: &BakeCon
         invalid_texels,
         seam_samples: seam_samples.len() as u64,
         seam_mismatch: [before, after],
-    }
-}
-
-/// Texel validity by page and texel coordinate, for the seam stage.
-struct ValidityGrid {
-    width: u32,
-    height: u32,
-    /// Per page texel: 0 no texel, 1 valid, 2 invalid.
-    cells: Vec<Vec<u8>>,
-}
-
-impl ValidityGrid {
-    fn new(texels: &Texels, page_count: u32, valid: &[bool]) -> Self {
-        let (width, height) = (texels.width, texels.height);
-        let mut cells = vec![vec![0u8; (width * height) as usize]; page_count as usize];
-        for t in 0..texels.len() {
-            let [x, y] = texels.xy[t];
-            cells[texels.page[t] as usize][(y * width + x) as usize] = 1 + !valid[t] as u8;
-        }
-        ValidityGrid {
-            width,
-            height,
-            cells,
-        }
-    }
-
-    /// False where the texel at texel coordinate `uv` of `page` is invalid.
-    fn at(&self, page: u32, uv: Vec2) -> bool {
-        let (x, y) = (uv.x.floor(), uv.y.floor());
-        if x < 0.0 || y < 0.0 || x >= self.width as f32 || y >= self.height as f32 {
-            return true;
-        }
-        let i = (y as u32 * self.width + x as u32) as usize;
-        self.cells.get(page as usize).is_none_or(|p| p[i] != 2)
     }
 }
 

@@ -39,7 +39,7 @@ struct DirectLight {
     parts: direct::Direct,
     /// Per texel, `parts.total()`.
     texel: Vec<Vec3>,
-    /// Per patch.
+    /// Per patch (moved into [`PatchLight`] by the solve).
     patch: Vec<Vec3>,
 }
 
@@ -67,7 +67,7 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
     log.end("form_factors");
 
     log.begin("direct", s.texels.len() as u64);
-    let direct = direct_light(s, config, &advance);
+    let mut direct = direct_light(s, config, &advance);
     log.end("direct");
 
     let max_shots = config.max_iterations as u64 * s.patches.len() as u64;
@@ -77,7 +77,15 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
         config.max_iterations as u64
     };
     log.begin("solve", total);
-    let patch_light = solve_patches(s, config, form_factors, &direct, &advance)?;
+    let patch_direct = std::mem::take(&mut direct.patch);
+    let patch_light = solve_patches(
+        s,
+        config,
+        form_factors,
+        &direct.sampled,
+        patch_direct,
+        &advance,
+    )?;
     if patch_light.solution.residual >= config.tolerance && config.solver != Solver::Direct {
         log.warnings.push(format!(
             "the solver stopped at its limit (max_iterations = {}) with residual {:.2e} above tolerance {:.2e}",
@@ -287,14 +295,15 @@ fn solve_patches(
     s: &Surfaces,
     config: &BakeConfig,
     form_factors: Option<FormFactors>,
-    direct: &DirectLight,
+    sampled: &[bool],
+    patch_direct: Vec<Vec3>,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Result<PatchLight> {
     let emission: Vec<Vec3> = (0..s.patches.len())
         .map(|i| {
             let t = s.patches.texels_of(i)[0] as usize;
             let m = s.geometry.material[s.texels.triangle[t] as usize] as usize;
-            if direct.sampled[m] {
+            if sampled[m] {
                 Vec3::ZERO
             } else {
                 s.patches.emission[i]
@@ -304,7 +313,7 @@ fn solve_patches(
     let system = System {
         emission: &emission,
         albedo: &s.patches.albedo,
-        direct: &direct.patch,
+        direct: &patch_direct,
         area: &s.patches.area,
     };
     let (tolerance, iterations) = (config.tolerance, config.max_iterations);
@@ -338,7 +347,7 @@ fn solve_patches(
         form_factors,
         stats,
         row_sums,
-        direct: direct.patch.clone(),
+        direct: patch_direct,
         solution,
     })
 }

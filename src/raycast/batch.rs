@@ -62,12 +62,8 @@ impl BatchCaster for CpuBatches<'_> {
         consume: &mut Consume,
     ) -> anyhow::Result<()> {
         let per_item = per_item.max(1);
-        for start in (0..count).step_by(self.batch.max(1)) {
-            let items = start..(start + self.batch.max(1)).min(count);
-            let mut rays = vec![(Vec3::ZERO, Vec3::ZERO); items.len() * per_item];
-            rays.par_chunks_mut(per_item)
-                .zip(items.clone())
-                .for_each(|(out, i)| generate(i, out));
+        for items in batch_ranges(count, self.batch) {
+            let rays = generate_rays(items.clone(), per_item, generate);
             let hits: Vec<Option<Hit>> = rays
                 .par_iter()
                 .map(|&(o, d)| self.rays.closest_hit(o, d, f32::INFINITY))
@@ -76,4 +72,28 @@ impl BatchCaster for CpuBatches<'_> {
         }
         Ok(())
     }
+}
+
+/// `0..count` in consecutive ranges of `per_batch` items (the last one
+/// short).
+pub fn batch_ranges(count: usize, per_batch: usize) -> Vec<Range<usize>> {
+    let per_batch = per_batch.max(1);
+    (0..count)
+        .step_by(per_batch)
+        .map(|a| a..(a + per_batch).min(count))
+        .collect()
+}
+
+/// The rays of `items`, `per_item` each in item order, generated in
+/// parallel.
+pub fn generate_rays(
+    items: Range<usize>,
+    per_item: usize,
+    generate: &Generate,
+) -> Vec<(Vec3, Vec3)> {
+    let mut rays = vec![(Vec3::ZERO, Vec3::ZERO); items.len() * per_item];
+    rays.par_chunks_mut(per_item)
+        .zip(items)
+        .for_each(|(out, i)| generate(i, out));
+    rays
 }

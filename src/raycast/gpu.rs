@@ -11,7 +11,7 @@
 //! hit is masked is re-cast there. BVHs deeper than the shader's stack are
 //! refused (the caller falls back to the CPU).
 
-use super::batch::{BatchCaster, Consume, Generate};
+use super::batch::{batch_ranges, generate_rays, BatchCaster, Consume, Generate};
 use super::{Hit, RayCaster};
 use crate::geometry::Geometry;
 use crate::scene::{Alpha, Scene};
@@ -488,10 +488,7 @@ impl<'a> GpuBatches<'a> {
 
     /// A batch's rays, generated on the CPU, in the shader's layout.
     fn generate(&self, items: Range<usize>, per_item: usize, generate: &Generate) -> Batch {
-        let mut rays = vec![(Vec3::ZERO, Vec3::ZERO); items.len() * per_item];
-        rays.par_chunks_mut(per_item)
-            .zip(items.clone())
-            .for_each(|(out, i)| generate(i, out));
+        let rays = generate_rays(items.clone(), per_item, generate);
         let flat = rays.par_iter().map(|&(o, d)| gpu_ray(o, d)).collect();
         Batch { items, rays, flat }
     }
@@ -522,10 +519,7 @@ impl BatchCaster for GpuBatches<'_> {
     ) -> Result<()> {
         let per_item = per_item.max(1);
         let per_batch = (BATCH / per_item).max(1);
-        let batches: Vec<Range<usize>> = (0..count)
-            .step_by(per_batch)
-            .map(|a| a..(a + per_batch).min(count))
-            .collect();
+        let batches = batch_ranges(count, per_batch);
         let Some(first) = batches.first() else {
             return Ok(());
         };
