@@ -377,3 +377,26 @@ fn malformed_index_counts_are_warned_and_counted() {
         w[0]
     );
 }
+
+/// Attributes of one primitive whose counts disagree (a NORMAL accessor
+/// shorter than POSITION) are refused with one line naming the file and
+/// the primitive, never baked with a guess.
+#[test]
+fn disagreeing_attribute_counts_are_refused() {
+    let mut g = GltfBuilder::default();
+    let m = g.material([0.5; 3], [1.0; 3]);
+    let (p, idx) = quad([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+    let mesh = g.mesh(&p, &idx, Some(m));
+    let normals = g.vec3(&[[0.0, 0.0, 1.0]; 3]);
+    g.meshes[mesh]["primitives"][0]["attributes"]["NORMAL"] = json!(normals);
+    g.node("panel", mesh);
+    let path = temp_dir("attribute_counts").join("scene.gltf");
+    g.write(&path);
+    let err = radbake::scene::load(&path, &Default::default())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(err.contains("scene.gltf"), "{err}");
+    assert!(err.contains("meshes[0].primitives[0]"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+}
