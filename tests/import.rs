@@ -393,8 +393,7 @@ fn disagreeing_attribute_counts_are_refused() {
     let path = temp_dir("attribute_counts").join("scene.gltf");
     g.write(&path);
     let err = radbake::scene::load(&path, &Default::default())
-        .err()
-        .expect("refused")
+        .expect_err("refused")
         .to_string();
     assert!(err.contains("scene.gltf"), "{err}");
     assert!(err.contains("meshes[0].primitives[0]"), "{err}");
