@@ -159,6 +159,9 @@ pub struct BakeConfig {
     pub final_gather: u32,
     /// Make both sides of UV seams on continuous surfaces agree.
     pub stitch_seams: bool,
+    /// Fold every texel's sample points out of walls and solids that cross
+    /// it ([`crate::burial`]); off, rays may start inside them.
+    pub burial_planes: bool,
     /// Edge-aware à-trous filtering of the gathered indirect light.
     pub denoise: bool,
     /// Directional lightmaps (needs the final gather).
@@ -214,6 +217,7 @@ impl BakeConfig {
             emitters: EmitterSampling::Auto,
             final_gather: 128,
             stitch_seams: true,
+            burial_planes: true,
             denoise: true,
             directional: DirectionalMode::None,
             ao_distance: 0.0,

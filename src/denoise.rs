@@ -3,7 +3,7 @@
 //! Transform for fast Global Illumination Filtering", HPG 2010) in lightmap
 //! space. Three passes of the 5 × 5 B3-spline kernel with holes 1, 2, 4
 //! texels; a neighbour counts only if it is a valid texel of the same
-//! instance and chart, and is weighted down by its world distance, normal
+//! instance and region (its chart, cut by walls), and is weighted down by its world distance, normal
 //! difference and — as in SVGF (Schied et al. 2017) — its difference in
 //! value relative to the texel's estimated noise (the gather's variance), so
 //! real gradients (contact shadows, corners) survive while noise goes.
@@ -20,8 +20,12 @@ const KERNEL: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.
 /// Filters `values` (one per texel) in place; `variance` is each value's
 /// noise variance (luminance); `texel_size` is a texel's world size
 /// (metres), the scale of the position guide.
+///
+/// Only texels of one region mix (`region(t)`, a chart cut by walls, see
+/// [`crate::burial::Burial::region`]).
 pub fn atrous(
     texels: &Texels,
+    region: &(dyn Fn(usize) -> u32 + Sync),
     values: &mut [Vec3],
     valid: &[bool],
     variance: &[f32],
@@ -55,7 +59,7 @@ pub fn atrous(
                         let u = u as usize;
                         if !valid[u]
                             || texels.instance[u] != texels.instance[t]
-                            || texels.chart[u] != texels.chart[t]
+                            || region(u) != region(t)
                         {
                             continue;
                         }

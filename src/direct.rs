@@ -465,13 +465,15 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> (Vec3, Directio
         return (h, dir_part, rays);
     }
     let n_texel = s.texels.n_ws[t];
+    // Pieces' points on the texel's side of its burial planes.
+    let side = crate::burial::Side::of(s, t);
     // (point, normal, value, direction, distance, weight aᵢ·lum(Eᵢ)) per lit piece.
     let mut lit: Vec<(Vec3, Vec3, Vec3, Vec3, f32, f32)> = Vec::with_capacity(pieces.len());
     for light in &lights.punctual {
         lit.clear();
         let mut unshadowed = Vec3::ZERO;
         for piece in pieces {
-            let p = g.point(piece.tri, piece.u, piece.v);
+            let p = side.fold(g.point(piece.tri, piece.u, piece.v));
             let n = g.ng_ws[piece.tri as usize];
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
                 let w = piece.area * value.element_sum();
@@ -546,6 +548,11 @@ pub fn texels(
             let mut vals = Vec::with_capacity(range.len());
             let mut rays = 0;
             for t in range {
+                if s.burial.enclosed(t) {
+                    // Inside a solid (see `burial`): nothing arrives.
+                    vals.push((Vec3::ZERO, Vec3::ZERO, [Vec3::ZERO; 3]));
+                    continue;
+                }
                 let mut rng = Stream::new(seed, PURPOSE, t as u64);
                 // One point: the texel's pieces (see `pieces_direct`);
                 // s × s points: spread over the texel's square.

@@ -30,8 +30,12 @@ use rayon::prelude::*;
 /// Stream purpose id of final-gather rays.
 const PURPOSE: u64 = 3;
 
-/// A texel is invalid when more than this fraction of its rays hit back faces.
-pub const BACKFACE_TOLERANCE: f32 = 0.1;
+/// A texel is invalid when more than this fraction of its rays hit back
+/// faces: most of what it sees is the inside of a solid. (Unity's default
+/// is 0.1, which also fails texels that lie partly under a wall; here the
+/// burial planes ([`crate::burial`]) keep their rays in open space, and
+/// one-sided geometry seen from behind across a room is not burial.)
+pub const BACKFACE_TOLERANCE: f32 = 0.5;
 
 /// Texel validity's rule: more than `BACKFACE_TOLERANCE` of `rays` met back
 /// faces.
@@ -62,40 +66,43 @@ pub const VALIDITY_RAYS: u32 = 8;
 const VALIDITY_PURPOSE: u64 = 11;
 
 /// A cheap first estimate of texel validity (the gather's rule on `rays`
-/// of its rays per texel, stopping once the texel is invalid),
-/// so texels buried in geometry can be filled in the first-pass lightmap
-/// before the gather reads it. Returns the validity and the rays cast.
-pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<bool>, u64) {
+/// of its rays per texel), so texels buried in geometry can be filled in
+/// the first-pass lightmap before the gather reads it. Returns how many of
+/// each texel's rays met back faces, and the rays cast.
+pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<u8>, u64) {
     let n = s.texels.len();
     let chunk = 1024;
-    let parts: Vec<(Vec<bool>, u64)> = (0..n.div_ceil(chunk))
+    let rays = rays.min(u8::MAX as u32);
+    let parts: Vec<Vec<u8>> = (0..n.div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
             let range = c * chunk..((c + 1) * chunk).min(n);
             let mut out = Vec::with_capacity(range.len());
-            let mut cast = 0u64;
             for t in range {
                 let mut rng = Stream::new(seed, VALIDITY_PURPOSE, t as u64);
                 let strata = rng.permutation(rays);
                 let sampler = s.texel_sampler(t as u32);
-                let mut back = 0u32;
+                let mut back = 0u8;
                 for k in 0..rays {
-                    if too_many_back_faces(back, rays) {
-                        break;
-                    }
-                    cast += 1;
                     let (p, ng, dir) = texel_ray(&sampler, k, rays, &strata, &mut rng);
                     if let (Landing::BackFace, _) = s.trace(offset_ray_origin(p, ng), dir) {
                         back += 1;
                     }
                 }
-                out.push(!too_many_back_faces(back, rays));
+                out.push(back);
             }
-            (out, cast)
+            out
         })
         .collect();
-    let rays = parts.iter().map(|p| p.1).sum();
-    (parts.into_iter().flat_map(|p| p.0).collect(), rays)
+    let cast = n as u64 * rays as u64;
+    (parts.into_iter().flatten().collect(), cast)
+}
+
+/// Texel validity from [`validity`]'s back-face counts of `rays` rays each.
+pub fn valid_from_counts(back: &[u8], rays: u32) -> Vec<bool> {
+    back.iter()
+        .map(|&b| !too_many_back_faces(b as u32, rays))
+        .collect()
 }
 
 /// The gathered indirect light.
@@ -211,6 +218,19 @@ impl<'a> Gatherer<'a> {
     #[inline(always)]
     fn texel(&self, t: usize, mut cast: impl FnMut(u32, Vec3, Vec3) -> Option<Hit>) -> TexelGather {
         let (s, g, extras, rays) = (self.s, self.s.geometry, self.extras, self.rays);
+        if s.burial.enclosed(t) {
+            // Every ray of the validity estimate met a back face: the texel
+            // is inside a solid; it receives nothing and is filled.
+            return TexelGather {
+                mean: Vec3::ZERO,
+                valid: false,
+                variance: 0.0,
+                directional: [Vec3::ZERO; 3],
+                ao: 0.0,
+                cast: 0,
+                light: Vec3::ZERO,
+            };
+        }
         let mut rng = Stream::new(self.seed, PURPOSE, t as u64);
         // Pair position strata with direction strata at random.
         let strata = rng.permutation(rays);

@@ -31,6 +31,7 @@
 #[cfg(feature = "gpu")]
 pub mod adapter;
 pub mod atlas;
+pub mod burial;
 pub mod config;
 pub mod denoise;
 pub mod direct;

@@ -1,7 +1,8 @@
 //! Stage 7 — lightmap pages from the patch solution. Each texel's value is
 //! H = incident irradiance / π = its own direct light (sampled per texel,
 //! sharp) + the indirect light of the patches, bilinearly interpolated
-//! between the centres of the four nearest patch blocks of the same chart
+//! between the centres of the four nearest patch blocks of the same region
+//! (chart, cut by walls: see [`crate::burial`])
 //! (missing blocks drop out and the weights are renormalised), so patches do
 //! not show as blocks.
 //! Empty texels around charts are then filled by dilation, ring by ring, so
@@ -53,7 +54,9 @@ fn interpolate_bilinear(texels: &Texels, patches: &Patches, patch_values: &[Vec3
         .map(|t| {
             let [x, y] = texels.xy[t];
             let inst = texels.instance[t];
-            let chart = texels.chart[t];
+            // The texel's region (its patch's key): blocks across a wall
+            // are other regions' and drop out.
+            let region = patches.key[patches.of_texel[t].0 as usize].1;
             let f = (Vec2::new(x as f32, y as f32) + 0.5) / k - 0.5;
             let b0 = f.floor();
             let w = f - b0;
@@ -69,7 +72,7 @@ fn interpolate_bilinear(texels: &Texels, patches: &Patches, patch_values: &[Vec3
                 if bx < 0 || by < 0 || wt <= 0.0 {
                     continue;
                 }
-                if let Some(p) = patches.by_key.get(&(inst, chart, bx as u32, by as u32)) {
+                if let Some(p) = patches.by_key.get(&(inst, region, bx as u32, by as u32)) {
                     acc += patch_values[p.0 as usize] * wt;
                     wsum += wt;
                 }

@@ -4,6 +4,7 @@
 //! centroid, normal, albedo and emission of its texels and their total area,
 //! the quantities of the discrete radiosity equation (Goral et al. 1984).
 
+use crate::burial::Burial;
 use crate::texels::Texels;
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
@@ -12,7 +13,8 @@ use std::collections::HashMap;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct PatchId(pub u32);
 
-/// Key of a block: (instance, chart, block x, block y).
+/// Key of a block: (instance, region, block x, block y); a region lies in
+/// one chart ([`crate::burial::Burial::region`]).
 pub type BlockKey = (u32, u32, u32, u32);
 
 /// The patches (struct of arrays, indexed by [`PatchId`]).
@@ -22,6 +24,10 @@ pub struct Patches {
     pub block: u32,
     /// Area-weighted centroid (world).
     pub p_ws: Vec<Vec3>,
+    /// Exposed area Σ area × [`Burial::exposed`] over the valid texels:
+    /// the area that receives and sheds light (`area` less what lies
+    /// inside or under geometry).
+    pub exposed_area: Vec<f32>,
     /// Area-weighted unit normal (world).
     pub n_ws: Vec<Vec3>,
     /// Area Aᵢ (m²).
@@ -69,11 +75,15 @@ impl Patches {
 /// joins its largest full neighbour in the same chart, so no patch is a
 /// sliver: slivers make noisy shooting targets and put a hemicube's eye on
 /// the very edge of a face.
-pub fn build(texels: &Texels, k: u32, full_texel_area: f32) -> Patches {
+///
+/// Blocks are per region ([`Burial::region`]):
+/// a block that a wall cuts in two is two patches.
+pub fn build(texels: &Texels, burial: &Burial, k: u32, full_texel_area: f32) -> Patches {
     let k = k.max(1);
+    let region = |t: usize| burial.region(texels, t);
     let block_of = |t: usize| {
         let [x, y] = texels.xy[t];
-        (texels.instance[t], texels.chart[t], x / k, y / k)
+        (texels.instance[t], region(t), x / k, y / k)
     };
     // Block areas, in order of first appearance.
     let mut block_area: HashMap<BlockKey, f32> = HashMap::new();
@@ -150,6 +160,7 @@ pub fn build(texels: &Texels, k: u32, full_texel_area: f32) -> Patches {
     let mut patches = Patches {
         block: k,
         p_ws: Vec::with_capacity(n),
+        exposed_area: Vec::with_capacity(n),
         n_ws: Vec::with_capacity(n),
         area: Vec::with_capacity(n),
         albedo: Vec::with_capacity(n),
@@ -163,9 +174,11 @@ pub fn build(texels: &Texels, k: u32, full_texel_area: f32) -> Patches {
     for i in 0..n {
         let (mut a, mut p, mut nrm, mut rho, mut e) =
             (0.0f32, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+        let mut exposed = 0.0f32;
         for &t in patches.texels_of(i) {
             let t = t as usize;
             let w = texels.area[t];
+            exposed += w * burial.exposed(t);
             a += w;
             p += texels.p_ws[t] * w;
             nrm += texels.n_ws[t] * w;
@@ -173,6 +186,7 @@ pub fn build(texels: &Texels, k: u32, full_texel_area: f32) -> Patches {
             e += texels.emission[t] * w;
         }
         patches.area.push(a);
+        patches.exposed_area.push(exposed);
         patches.p_ws.push(p / a);
         patches.n_ws.push(nrm.normalize_or(Vec3::Y));
         patches.albedo.push(rho / a);
@@ -200,7 +214,7 @@ mod tests {
             t.albedo.push(Vec3::splat(0.5));
             t.emission.push(Vec3::ZERO);
         }
-        let p = build(&t, 2, 0.25);
+        let p = build(&t, &Burial::open(), 2, 0.25);
         // (0,0),(1,0) chart 0 | (2,0),(3,1) chart 0 | (1,1) chart 1
         assert_eq!(p.len(), 3);
         assert_eq!(p.texels_of(0), &[0, 1]);

@@ -50,6 +50,11 @@ pub struct Counts {
     pub texels: u64,
     /// Texels inside or under geometry, filled from valid neighbours.
     pub invalid_texels: u64,
+    /// Texels crossed by a wall or solid: their sample points are folded
+    /// into the exposed part (burial planes, see `burial_planes`).
+    pub clipped_texels: u64,
+    /// Texels whose centre lay inside a solid and was moved out of it.
+    pub moved_texels: u64,
     /// Seam sample pairs (points on UV seams of continuous surfaces).
     pub seam_samples: u64,
     /// Mean |difference| (RGB sum) of bilinear lightmap samples across seams, before and after stitching.
@@ -66,6 +71,9 @@ pub struct Counts {
     pub rays_direct: u64,
     /// Rays cast by the validity estimate before the final gather.
     pub rays_validity: u64,
+    /// Rays cast by the burial stage (along texels and, where a centre
+    /// may be inside a solid, over its hemisphere).
+    pub rays_burial: u64,
     /// Rays cast by the final gather.
     pub rays_gather: u64,
     /// Form-factor rays that left the scene.
@@ -185,6 +193,7 @@ impl Report {
             "solve" if progressive => c.rays_form_factors,
             "direct" => c.rays_direct,
             "validity" => c.rays_validity,
+            "burial" => c.rays_burial,
             "final_gather" => c.rays_gather,
             _ => 0,
         }

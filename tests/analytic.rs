@@ -263,7 +263,9 @@ fn cornell_box_sane() {
         );
         assert!(energy.reflected_escaped[c] > 0.0);
     }
-    // Reciprocity between instances: A_I F_IJ = A_J F_JI where F_IJ > 0.05,
+    // Reciprocity between instances: A_I F_IJ = A_J F_JI where F_IJ > 0.05
+    // (A: the exposed area, which shoots and receives; not what lies under
+    // the blocks),
     // within 3 % or four standard errors of the two ray estimates, whichever
     // is larger (the light has 11 patches: its F to the short block rests on
     // ~150 of its 2,816 rays, σ ≈ 12 %; binomial errors, which stratified
@@ -285,7 +287,7 @@ fn cornell_box_sane() {
         .enumerate()
     {
         for (&j, &v) in row.col_indices().iter().zip(row.values()) {
-            af[p.key[i].0 as usize][p.key[j].0 as usize] += p.area[i] as f64 * v as f64;
+            af[p.key[i].0 as usize][p.key[j].0 as usize] += p.exposed_area[i] as f64 * v as f64;
         }
     }
     let mut checked = 0;

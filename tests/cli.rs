@@ -221,6 +221,7 @@ fn stats_prints_stages_rays_and_peak_memory() {
             + c["rays_direct"].as_u64().unwrap()
             + c["rays_validity"].as_u64().unwrap()
             + c["rays_gather"].as_u64().unwrap()
+            + c["rays_burial"].as_u64().unwrap()
     );
     // The validity estimate before the gather: at most 8 rays per texel,
     // fewer for texels found buried early.

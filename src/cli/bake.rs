@@ -87,6 +87,9 @@ pub struct BakeArgs {
     /// Stitch UV seams of continuous surfaces: true or false [default: true].
     #[arg(long)]
     pub stitch_seams: Option<bool>,
+    /// Fold texels' sample points out of walls and solids crossing them: true or false [default: true].
+    #[arg(long)]
+    pub burial_planes: Option<bool>,
     /// Final-gather rays per texel; 0 turns the final gather off [default: 128].
     #[arg(long)]
     pub final_gather: Option<u32>,
@@ -179,6 +182,7 @@ impl BakeArgs {
             emitters,
             final_gather,
             stitch_seams,
+            burial_planes,
             denoise,
             directional,
             ao_distance,

@@ -207,6 +207,9 @@ fn raster_triangle(v: &[Vec3; 3], tri: u32, n: u32, rows: u32, buf: &mut [Pixel]
 
 /// Row i of F by the hemicube, sorted by column.
 pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFactorStats) {
+    if s.patch_buried(i) {
+        return (Vec::new(), FormFactorStats::default());
+    }
     let n = cube.n;
     let nrm = s.patches.n_ws[i];
     // Eye: the patch centroid pulled onto its nearest texel's surface, off it by an offset.

@@ -5,6 +5,7 @@
 //! the front of patch j) / N. Directions are stratified over a √N × √N grid.
 
 use super::{FormFactorStats, FormFactors};
+use crate::burial::{Burial, Side};
 use crate::geometry::Geometry;
 use crate::patches::Patches;
 use crate::raycast::batch::BatchCaster;
@@ -30,6 +31,9 @@ pub struct Surfaces<'a> {
     pub patches: &'a Patches,
     /// Ray caster.
     pub rays: &'a RayCaster,
+    /// Burial planes: every texel sample point is folded into its texel's
+    /// exposed part ([`crate::burial`]).
+    pub burial: &'a Burial,
 }
 
 /// What a ray found.
@@ -50,19 +54,36 @@ impl Surfaces<'_> {
     /// geometric normal there: a texel picked by area from `u.x`, then a
     /// point in its square from `jitter`, kept if it lies on the texel's
     /// main triangle (else the texel's centroid).
+    ///
+    /// Texels are picked by exposed area ([`Burial::exposed`]), so no
+    /// point starts inside a solid while the patch has an exposed part.
     pub fn sample_patch(&self, i: usize, u: f32, jitter: Vec2) -> (Vec3, Vec3) {
         let texels = self.patches.texels_of(i);
-        let total = self.patches.area[i];
+        let exposed = |t: u32| self.texels.area[t as usize] * self.burial.exposed(t as usize);
+        let open = self.patches.exposed_area[i];
+        let (total, weight): (f32, &dyn Fn(u32) -> f32) = if open > 0.0 {
+            (open, &exposed)
+        } else {
+            (self.patches.area[i], &|t| self.texels.area[t as usize])
+        };
         let mut target = u * total;
         let mut pick = texels[texels.len() - 1];
         for &t in texels {
-            target -= self.texels.area[t as usize];
+            target -= weight(t);
             if target <= 0.0 {
                 pick = t;
                 break;
             }
         }
         self.sample_texel(pick, jitter)
+    }
+
+    /// Patch `i` has no exposed area: every texel of it lies inside or
+    /// under geometry ([`crate::burial`]). Nothing reaches it, so its row
+    /// of F is empty: its rays would start inside a solid and carry light
+    /// from one side of a wall to the other.
+    pub fn patch_buried(&self, i: usize) -> bool {
+        !self.burial.valid.is_empty() && self.patches.exposed_area[i] <= 0.0
     }
 
     /// A point of texel `t` (see [`Surfaces::sample_patch`]) and its normal.
@@ -96,6 +117,7 @@ impl Surfaces<'_> {
         let pieces = self.texels.pieces_of(t);
         TexelSampler {
             geometry: self.geometry,
+            side: Side::of(self, t),
             pieces,
             total: pieces.iter().map(|p| p.area).sum(),
             tri,
@@ -131,9 +153,52 @@ impl Surfaces<'_> {
             .texels
             .lookup(g.page[t], uv_lm, g.instance[t], g.chart[t])
         {
-            Some(texel) => Landing::Texel(texel),
+            Some(texel) if self.burial.planes_of(texel as usize).is_empty() => {
+                Landing::Texel(texel)
+            }
+            Some(texel) => self.beside(texel, g.point(tri, u, v)),
             None => Landing::Unmapped,
         }
+    }
+
+    /// The texel of a hit at `p` that lookup found in `texel`, a texel
+    /// with burial planes: itself where `p` is on its exposed side, else
+    /// the nearest of its 8 neighbours in its chart that has `p` on its
+    /// exposed side (the hit is on the part of `texel` across a wall, which
+    /// holds the other side's light); unmapped if none does.
+    fn beside(&self, texel: u32, p: Vec3) -> Landing {
+        let tx = self.texels;
+        let t = texel as usize;
+        let side = Side::of(self, t);
+        if !side.across(p, side.margin) {
+            return Landing::Texel(texel);
+        }
+        let exposed = |u: usize| {
+            let side = Side::of(self, u);
+            !side.across(p, side.margin)
+        };
+        let [x, y] = tx.xy[t];
+        let mut best: Option<(f32, u32)> = None;
+        for dy in -1i64..=1 {
+            for dx in -1i64..=1 {
+                let Some(u) = tx.at(tx.page[t], x as i64 + dx, y as i64 + dy) else {
+                    continue;
+                };
+                let ui = u as usize;
+                if u == texel
+                    || tx.instance[ui] != tx.instance[t]
+                    || tx.chart[ui] != tx.chart[t]
+                    || !exposed(ui)
+                {
+                    continue;
+                }
+                let d = tx.p_ws[ui].distance_squared(p);
+                if best.is_none_or(|(bd, _)| d < bd) {
+                    best = Some((d, u));
+                }
+            }
+        }
+        best.map_or(Landing::Unmapped, |(_, u)| Landing::Texel(u))
     }
 
     /// Where the ray from `origin` along `dir` meets the plane of triangle
@@ -161,6 +226,8 @@ impl Surfaces<'_> {
 #[derive(Clone, Copy, Debug)]
 pub struct TexelSampler<'a> {
     geometry: &'a Geometry,
+    /// The texel's burial planes, which sample points are folded behind.
+    side: Side<'a>,
     pieces: &'a [crate::texels::Piece],
     /// Σ of the pieces' areas.
     total: f32,
@@ -183,8 +250,20 @@ impl TexelSampler<'_> {
     /// [`Surfaces::sample_texel_area`]).
     #[inline]
     pub fn sample_area(&self, jitter: Vec2, rng: &mut Stream) -> (Vec3, Vec3) {
+        let (p, ng) = self.sample_pieces(jitter, rng);
+        (self.fold(p), ng)
+    }
+
+    /// A point folded into the texel's exposed part ([`crate::burial::fold`]).
+    #[inline]
+    fn fold(&self, p: Vec3) -> Vec3 {
+        self.side.fold(p)
+    }
+
+    /// [`TexelSampler::sample_area`]'s point before folding.
+    fn sample_pieces(&self, jitter: Vec2, rng: &mut Stream) -> (Vec3, Vec3) {
         if self.pieces.is_empty() || !(self.total > 0.0 && self.total.is_finite()) {
-            return self.sample(jitter);
+            return self.sample_unfolded(jitter);
         }
         // The piece, by area, from jitter.x (remapped to stay uniform).
         let (mut tri, mut jx, mut centroid) = (self.tri, jitter.x, None);
@@ -264,8 +343,16 @@ impl TexelSampler<'_> {
     /// leaving exactly from an edge that meets another face can slip
     /// through the crack between them. (The arithmetic of
     /// [`crate::texels::barycentric`] and [`crate::geometry::Geometry::point`].)
+    /// The point is then folded into the texel's exposed part.
     #[inline]
     pub fn sample(&self, jitter: Vec2) -> (Vec3, Vec3) {
+        let (p, ng) = self.sample_unfolded(jitter);
+        (self.fold(p), ng)
+    }
+
+    /// [`TexelSampler::sample`]'s point before folding.
+    #[inline]
+    fn sample_unfolded(&self, jitter: Vec2) -> (Vec3, Vec3) {
         let q = self.corner + jitter;
         let w1 = (q - self.uv0).perp_dot(self.uv_e2) / self.uv_det;
         let w2 = self.uv_e1.perp_dot(q - self.uv0) / self.uv_det;
@@ -327,7 +414,11 @@ pub fn compute_batched(
                 .into_par_iter()
                 .map(|i| {
                     let k = (i - start) * rpp..(i - start + 1) * rpp;
-                    let r = row_from_hits(s, &rays[k.clone()], &hits[k]);
+                    let r = if s.patch_buried(i) {
+                        (Vec::new(), FormFactorStats::default())
+                    } else {
+                        row_from_hits(s, &rays[k.clone()], &hits[k])
+                    };
                     advance(1);
                     r
                 })
@@ -343,6 +434,9 @@ pub fn compute_batched(
 
 /// Row i of F, sorted by column.
 pub fn row(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> (Vec<(u32, f32)>, FormFactorStats) {
+    if s.patch_buried(i) {
+        return (Vec::new(), FormFactorStats::default());
+    }
     let rays = row_rays(s, i, n_rays, seed);
     let hits: Vec<Option<Hit>> = rays
         .iter()

@@ -3,8 +3,8 @@
 //! that the next step reads.
 //!
 //! ```text
-//! Scene ─► Atlas ─► Geometry ─► Texels ─► Patches ─► RayCaster ─► TexelLight ─► Maps ─► files
-//! scene    atlas    geometry    texels    patches    raycast      transport     maps     output
+//! Scene ─► Atlas ─► Geometry ─► Texels ─► RayCaster ─► Burial ─► Patches ─► TexelLight ─► Maps ─► files
+//! scene    atlas    geometry    texels    raycast      burial    patches    transport     maps     output
 //! ```
 //!
 //! Light transport ([`transport`]) is one dispatch over
@@ -22,6 +22,7 @@ pub mod texel_light;
 pub mod transport;
 
 use crate::atlas::{self, Atlas};
+use crate::burial::{self, Burial};
 use crate::config::BakeConfig;
 use crate::error::Result;
 use crate::form_factors::raycast::Surfaces;
@@ -50,6 +51,8 @@ pub struct Bake<'s> {
     pub texels: Texels,
     /// Patches.
     pub patches: Patches,
+    /// Burial planes and each texel's exposed fraction.
+    pub burial: Burial,
     /// Light transport's product: the light per texel as it arrived (before
     /// invalid texels are filled), validity, ray counts.
     pub transport: TexelLight,
@@ -85,14 +88,16 @@ pub fn bake<'s>(
     let texels = texels::rasterize(scene, &atlas, &geometry);
     log.end("texels");
 
-    log.begin("patches", 0);
-    let texel_area = 1.0 / (atlas.texels_per_meter * atlas.texels_per_meter);
-    let patches = patches::build(&texels, config.patch_texels, texel_area);
-    log.end("patches");
-
     log.begin("bvh", 0);
     let rays = RayCaster::new(scene, &geometry);
     log.end("bvh");
+
+    let burial = burial_planes(scene, &geometry, &texels, &rays, config, &mut log);
+
+    log.begin("patches", 0);
+    let texel_area = 1.0 / (atlas.texels_per_meter * atlas.texels_per_meter);
+    let patches = patches::build(&texels, &burial, config.patch_texels, texel_area);
+    log.end("patches");
 
     let surfaces = Surfaces {
         scene,
@@ -100,6 +105,7 @@ pub fn bake<'s>(
         texels: &texels,
         patches: &patches,
         rays: &rays,
+        burial: &burial,
     };
     let light = transport::run(&surfaces, &atlas, config, &mut log)?;
 
@@ -114,6 +120,7 @@ pub fn bake<'s>(
         geometry,
         texels,
         patches,
+        burial,
         transport: light,
         maps,
         stages: log.stages,
@@ -135,6 +142,7 @@ impl<'s> Bake<'s> {
             texels: &self.texels,
             patches: &self.patches,
             rays,
+            burial: &self.burial,
         }
     }
 
@@ -142,6 +150,36 @@ impl<'s> Bake<'s> {
     pub fn patch_light(&self) -> Option<&PatchLight> {
         self.transport.patch_light.as_ref()
     }
+}
+
+/// The burial stage ([`crate::burial`]), or no planes where
+/// `config.burial_planes` is off.
+fn burial_planes(
+    scene: &Scene,
+    geometry: &Geometry,
+    texels: &Texels,
+    rays: &RayCaster,
+    config: &BakeConfig,
+    log: &mut Log,
+) -> Burial {
+    if !config.burial_planes {
+        return Burial::open();
+    }
+    log.begin("burial", 0);
+    let open = Burial::open();
+    // The stage reads no patches (they are built from its regions).
+    let patches = Patches::default();
+    let s = Surfaces {
+        scene,
+        geometry,
+        texels,
+        patches: &patches,
+        rays,
+        burial: &open,
+    };
+    let burial = burial::compute(&s, config.seed, crate::gather::VALIDITY_RAYS);
+    log.end("burial");
+    burial
 }
 
 /// Warnings about the input itself: the importer's, and a scene that

@@ -123,7 +123,16 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
     // gathered 8 % too little). A first, cheap validity estimate lets
     // buried texels take their neighbours' H₁ before anything reads them.
     log.begin("validity", s.texels.len() as u64);
-    let (pre, validity_rays) = gather::validity(s, gather::VALIDITY_RAYS, config.seed);
+    let (pre, validity_rays) = if s.burial.valid.is_empty() {
+        let (back, rays) = gather::validity(s, gather::VALIDITY_RAYS, config.seed);
+        (
+            gather::valid_from_counts(&back, gather::VALIDITY_RAYS),
+            rays,
+        )
+    } else {
+        // Judged already by the burial stage, from folded points.
+        (s.burial.valid.clone(), s.burial.stats.validity_rays)
+    };
     lightmap::fill_invalid(
         s.texels,
         &mut first,
@@ -396,7 +405,15 @@ fn gathered_light(
     if config.denoise {
         log.begin("denoise", 0);
         let texel_size = 1.0 / atlas.texels_per_meter;
-        denoise::atrous(s.texels, &mut indirect, &g.valid, &g.variance, texel_size);
+        let region = |t: usize| s.burial.region(s.texels, t);
+        denoise::atrous(
+            s.texels,
+            &region,
+            &mut indirect,
+            &g.valid,
+            &g.variance,
+            texel_size,
+        );
         log.end("denoise");
     }
     let values = texel_direct

@@ -6,8 +6,9 @@ use crate::report::{Counts, Energy, InstanceReport, Report};
 
 impl Bake<'_> {
     /// Per instance: the area-weighted mean of the light that arrives
-    /// (`mean`: texel values as light transport left them, buried texels at
-    /// what they receive), of the filled and stitched lightmap
+    /// (`mean`: texel values as light transport left them over each
+    /// texel's exposed part, and nothing over buried parts and invalid
+    /// texels, see [`crate::burial`]), of the filled and stitched lightmap
     /// (`lightmap_mean`), and the area of valid texels.
     pub fn instance_reports(&self) -> Vec<InstanceReport> {
         let n = self.scene.instances.len();
@@ -15,6 +16,14 @@ impl Bake<'_> {
         for t in 0..self.texels.len() {
             let sums = &mut acc[self.texels.instance[t] as usize];
             let a = self.texels.area[t] as f64;
+            // What the texel receives: its value over its exposed part,
+            // nothing over the part behind its burial planes, nothing if
+            // it is invalid (inside a solid).
+            let exposed = if self.transport.valid[t] {
+                self.burial.exposed(t) as f64
+            } else {
+                0.0
+            };
             let arrived = self.transport.values[t];
             let lightmap = self.maps.lightmaps.texel_values[t];
             sums.area += a;
@@ -23,7 +32,7 @@ impl Bake<'_> {
                 sums.valid_area += a;
             }
             for c in 0..3 {
-                sums.arrived[c] += a * arrived[c] as f64;
+                sums.arrived[c] += a * exposed * arrived[c] as f64;
                 sums.lightmap[c] += a * lightmap[c] as f64;
             }
         }
@@ -69,7 +78,9 @@ impl Bake<'_> {
         let rows = &light.row_sums;
         let pi = std::f64::consts::PI;
         for (i, row_sum) in rows.iter().enumerate() {
-            let a = p.area[i] as f64;
+            // What sheds and receives light: the part not inside or under
+            // geometry.
+            let a = p.exposed_area[i] as f64;
             for c in 0..3 {
                 let emitted = pi * a * p.emission[i][c] as f64;
                 e.emitted[c] += emitted;
@@ -123,7 +134,10 @@ impl Bake<'_> {
                 nonzeros: patch_light
                     .and_then(|p| p.form_factors.as_ref())
                     .map_or(0, |f| f.nnz() as u64),
-                rays: rays.total(),
+                rays: rays.total() + self.burial.stats.rays,
+                rays_burial: self.burial.stats.rays,
+                clipped_texels: self.burial.stats.clipped,
+                moved_texels: self.burial.stats.moved,
                 rays_form_factors: rays.form_factors,
                 rays_direct: rays.direct,
                 rays_validity: rays.validity,
