@@ -88,10 +88,10 @@ pub struct Side<'a> {
 impl<'a> Side<'a> {
     /// Texel `t`'s side.
     pub fn of(s: &Surfaces<'a>, t: usize) -> Side<'a> {
-        let planes = s.burial.planes_of(t);
-        if planes.is_empty() {
+        if !s.burial.has_planes(t) {
             return Side::default();
         }
+        let planes = s.burial.planes_of(t);
         let tri = s.texels.triangle[t] as usize;
         let ng = s.geometry.ng_ws[tri];
         Side {
@@ -151,6 +151,10 @@ pub struct Burial {
     /// Exposed fraction per texel (0 for invalid texels); empty when the
     /// stage is off.
     exposed: Vec<f32>,
+    /// Bit `t % 64` of word `t / 64`: texel `t` is split ([`Burial::split`]).
+    split: Vec<u64>,
+    /// The same for texels with planes ([`Burial::has_planes`]).
+    clipped: Vec<u64>,
     /// Per texel, how far in front of its planes points are folded (a
     /// hundredth of a texel); empty when the stage is off.
     margin: Vec<f32>,
@@ -190,6 +194,30 @@ impl Burial {
             Some(&r) => r,
             None => texels.chart[t],
         }
+    }
+
+    /// How far in front of its planes texel `t`'s points are folded.
+    #[inline]
+    pub fn margin(&self, t: usize) -> f32 {
+        self.margin.get(t).copied().unwrap_or(0.0)
+    }
+
+    /// Texel `t` has burial planes (a bit per texel, as [`Burial::split`]).
+    #[inline]
+    pub fn has_planes(&self, t: usize) -> bool {
+        self.clipped
+            .get(t / 64)
+            .is_some_and(|w| w >> (t % 64) & 1 == 1)
+    }
+
+    /// Part of texel `t` lies across one of its planes, where a ray may
+    /// land that came from the other side (one bit per texel: read for
+    /// every ray hit, so kept small).
+    #[inline]
+    pub fn split(&self, t: usize) -> bool {
+        self.split
+            .get(t / 64)
+            .is_some_and(|w| w >> (t % 64) & 1 == 1)
     }
 
     /// Every ray of texel `t`'s validity estimate met a back face: it lies
@@ -513,13 +541,21 @@ fn planes(s: &Surfaces, seed: u64) -> Burial {
         planes: Vec::new(),
         exposed: Vec::with_capacity(n),
         margin: Vec::with_capacity(n),
+        split: vec![0; n.div_ceil(64)],
+        clipped: vec![0; n.div_ceil(64)],
         valid: Vec::new(),
         region: Vec::new(),
         enclosed: Vec::new(),
         stats: BurialStats::default(),
     };
     burial.start.push(0);
-    for x in parts.into_iter().flatten() {
+    for (t, x) in parts.into_iter().flatten().enumerate() {
+        if !x.planes.is_empty() {
+            burial.clipped[t / 64] |= 1 << (t % 64);
+            if x.exposed < 1.0 {
+                burial.split[t / 64] |= 1 << (t % 64);
+            }
+        }
         let st = &mut burial.stats;
         st.rays += x.rays;
         st.clipped += !x.planes.is_empty() as u64;

@@ -43,6 +43,13 @@ fn too_many_back_faces(back: u32, rays: u32) -> bool {
     back as f32 > BACKFACE_TOLERANCE * rays as f32
 }
 
+/// The gather may stop early: after at least 16 rays, more than 90 % met
+/// back faces (a texel with half its hemisphere open does that with
+/// probability 3·10⁻⁴ after 16 rays, less after more).
+fn surely_buried(back: u32, cast: u32) -> bool {
+    cast >= 16 && back * 10 > cast * 9
+}
+
 /// Ray `k` of `rays` from texel `t`: a point of position stratum
 /// `strata[k]` (a random pairing, see [`Stream::permutation`]) and a
 /// cosine-weighted direction of stratum `k`. Returns (point, normal, direction).
@@ -245,7 +252,7 @@ impl<'a> Gatherer<'a> {
             // texel needs, the texel is invalid whatever the rest
             // would find (its value is replaced from its chart), so
             // stop: texels inside walls are a quarter of Sponza's.
-            if too_many_back_faces(back, rays) {
+            if too_many_back_faces(back, rays) || surely_buried(back, n_cast) {
                 break;
             }
             n_cast += 1;
@@ -303,7 +310,7 @@ impl<'a> Gatherer<'a> {
         let lum = mean.element_sum() / 3.0;
         TexelGather {
             mean,
-            valid: !too_many_back_faces(back, rays),
+            valid: !too_many_back_faces(back, rays) && !surely_buried(back, n_cast),
             variance: ((sq / n - lum * lum).max(0.0)) / n,
             directional: dir_sum.map(|b| b / n),
             ao: open as f32 / n,

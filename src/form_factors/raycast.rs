@@ -59,20 +59,25 @@ impl Surfaces<'_> {
     /// point starts inside a solid while the patch has an exposed part.
     pub fn sample_patch(&self, i: usize, u: f32, jitter: Vec2) -> (Vec3, Vec3) {
         let texels = self.patches.texels_of(i);
-        let exposed = |t: u32| self.texels.area[t as usize] * self.burial.exposed(t as usize);
-        let open = self.patches.exposed_area[i];
-        let (total, weight): (f32, &dyn Fn(u32) -> f32) = if open > 0.0 {
-            (open, &exposed)
-        } else {
-            (self.patches.area[i], &|t| self.texels.area[t as usize])
-        };
-        let mut target = u * total;
+        let (area, open) = (self.patches.area[i], self.patches.exposed_area[i]);
         let mut pick = texels[texels.len() - 1];
-        for &t in texels {
-            target -= weight(t);
-            if target <= 0.0 {
-                pick = t;
-                break;
+        if open < area && open > 0.0 {
+            let mut target = u * open;
+            for &t in texels {
+                target -= self.texels.area[t as usize] * self.burial.exposed(t as usize);
+                if target <= 0.0 {
+                    pick = t;
+                    break;
+                }
+            }
+        } else {
+            let mut target = u * area;
+            for &t in texels {
+                target -= self.texels.area[t as usize];
+                if target <= 0.0 {
+                    pick = t;
+                    break;
+                }
             }
         }
         self.sample_texel(pick, jitter)
@@ -153,22 +158,32 @@ impl Surfaces<'_> {
             .texels
             .lookup(g.page[t], uv_lm, g.instance[t], g.chart[t])
         {
-            Some(texel) if self.burial.planes_of(texel as usize).is_empty() => {
-                Landing::Texel(texel)
-            }
+            Some(texel) if !self.burial.split(texel as usize) => Landing::Texel(texel),
             Some(texel) => self.beside(texel, g.point(tri, u, v)),
             None => Landing::Unmapped,
         }
     }
 
     /// The texel of a hit at `p` that lookup found in `texel`, a texel
-    /// with burial planes: itself where `p` is on its exposed side, else
+    /// split by its burial planes ([`Burial::split`]): itself where `p` is on its exposed side, else
     /// the nearest of its 8 neighbours in its chart that has `p` on its
     /// exposed side (the hit is on the part of `texel` across a wall, which
     /// holds the other side's light); unmapped if none does.
+    #[inline(never)]
     fn beside(&self, texel: u32, p: Vec3) -> Landing {
         let tx = self.texels;
         let t = texel as usize;
+        // Most hits on such texels are on their side: the planes alone
+        // tell, before the texel's own plane is read.
+        let tol = self.burial.margin(t);
+        if !self
+            .burial
+            .planes_of(t)
+            .iter()
+            .any(|c| c.n.dot(p) > c.k + tol)
+        {
+            return Landing::Texel(texel);
+        }
         let side = Side::of(self, t);
         if !side.across(p, side.margin) {
             return Landing::Texel(texel);
