@@ -168,7 +168,11 @@ impl Surfaces<'_> {
     /// split by its burial planes ([`Burial::split`]): itself where `p` is on its exposed side, else
     /// the nearest of its 8 neighbours in its chart that has `p` on its
     /// exposed side (the hit is on the part of `texel` across a wall, which
-    /// holds the other side's light); unmapped if none does.
+    /// holds the other side's light); `texel` itself if none does (planes
+    /// of a surface that does not close off the texel, a thin pole or a
+    /// curved face: a ray from the open side reached the point). Reading
+    /// nothing there instead lost 1.5 % of Sponza's form-factor rays and
+    /// read its arcades 10 % dark.
     #[inline(never)]
     fn beside(&self, texel: u32, p: Vec3) -> Landing {
         let tx = self.texels;
@@ -213,7 +217,7 @@ impl Surfaces<'_> {
                 }
             }
         }
-        best.map_or(Landing::Unmapped, |(_, u)| Landing::Texel(u))
+        best.map_or(Landing::Texel(texel), |(_, u)| Landing::Texel(u))
     }
 
     /// Where the ray from `origin` along `dir` meets the plane of triangle
