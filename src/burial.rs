@@ -86,6 +86,22 @@ pub struct Side<'a> {
 }
 
 impl<'a> Side<'a> {
+    /// Texel `t`'s side, given its largest triangle's normal `ng` and a
+    /// corner `p0` of it (what [`Surfaces::texel_sampler`] has read
+    /// already).
+    #[inline]
+    pub fn with_plane(burial: &'a Burial, t: usize, ng: Vec3, p0: Vec3) -> Side<'a> {
+        if !burial.has_planes(t) {
+            return Side::default();
+        }
+        Side {
+            planes: burial.planes_of(t),
+            ng,
+            d: ng.dot(p0),
+            margin: burial.margin[t],
+        }
+    }
+
     /// Texel `t`'s side.
     pub fn of(s: &Surfaces<'a>, t: usize) -> Side<'a> {
         if !s.burial.has_planes(t) {
@@ -390,10 +406,12 @@ fn texel(s: &Surfaces, t: usize, seed: u64) -> TexelBurial {
         d: ng.dot(s.geometry.p_ws[tri][0]),
         margin: lift,
     };
+    // Points of the texel's square on its largest triangle's plane (the
+    // fast sampler's, clamped onto the triangle): the planes cut that plane.
     let mut exposed = 0u32;
     for k in 0..AREA_POINTS {
         let jitter = stratified(k, AREA_POINTS, rng.next_vec2());
-        let (p, _) = sampler.sample_area(jitter, &mut rng);
+        let (p, _) = sampler.sample(jitter);
         if !side.across(p, 0.0) {
             exposed += 1;
         }
@@ -433,15 +451,15 @@ impl Default for TexelBurial {
 /// its own burial is not used. The validity estimate
 /// ([`crate::gather::validity`], `validity_rays` per texel) casts from
 /// points folded by the new planes; invalid texels (inside a solid) count
-/// as not exposed at all.
-pub fn compute(s: &Surfaces, seed: u64, validity_rays: u32) -> Burial {
+/// as not exposed at all; `tolerance` is the back-face tolerance.
+pub fn compute(s: &Surfaces, seed: u64, validity_rays: u32, tolerance: f32) -> Burial {
     let mut burial = planes(s, seed);
     let folded = Surfaces {
         burial: &burial,
         ..*s
     };
     let (back, rays) = crate::gather::validity(&folded, validity_rays, seed);
-    let valid = crate::gather::valid_from_counts(&back, validity_rays);
+    let valid = crate::gather::valid_from_counts(&back, validity_rays, tolerance);
     burial.enclosed = back.iter().map(|&b| b as u32 >= validity_rays).collect();
     for (e, &v) in burial.exposed.iter_mut().zip(&valid) {
         if !v {

@@ -162,6 +162,10 @@ pub struct BakeConfig {
     /// Fold every texel's sample points out of walls and solids that cross
     /// it ([`crate::burial`]); off, rays may start inside them.
     pub burial_planes: bool,
+    /// A texel is invalid (inside a solid, filled from its neighbours)
+    /// when more than this fraction of its rays meet back faces (0 < x ≤ 1;
+    /// Unity's default is 0.1).
+    pub backface_tolerance: f32,
     /// Edge-aware à-trous filtering of the gathered indirect light.
     pub denoise: bool,
     /// Directional lightmaps (needs the final gather).
@@ -218,6 +222,7 @@ impl BakeConfig {
             final_gather: 128,
             stitch_seams: true,
             burial_planes: true,
+            backface_tolerance: 0.5,
             denoise: true,
             directional: DirectionalMode::None,
             ao_distance: 0.0,
@@ -327,6 +332,9 @@ impl BakeConfig {
         if self.supersample < 1 || self.supersample > 8 {
             return bad("supersample", "must be in 1..=8");
         }
+        if !(self.backface_tolerance > 0.0 && self.backface_tolerance <= 1.0) {
+            return bad("backface_tolerance", "must be in (0, 1]");
+        }
         if !(self.ao_distance.is_finite() && self.ao_distance >= 0.0) {
             return bad("ao_distance", "must be a finite number ≥ 0");
         }
@@ -405,5 +413,11 @@ mod tests {
     fn bad_range_is_named() {
         let err = BakeConfig::from_toml("patch_texels = 0").unwrap_err();
         assert!(err.to_string().contains("patch_texels"), "{err}");
+        for bad in ["backface_tolerance = 0.0", "backface_tolerance = 1.5"] {
+            let err = BakeConfig::from_toml(bad).unwrap_err();
+            assert!(err.to_string().contains("backface_tolerance"), "{err}");
+        }
+        let ok = BakeConfig::from_toml("backface_tolerance = 0.1\nburial_planes = false").unwrap();
+        assert!(!ok.burial_planes && ok.backface_tolerance == 0.1);
     }
 }

@@ -30,24 +30,26 @@ use rayon::prelude::*;
 /// Stream purpose id of final-gather rays.
 const PURPOSE: u64 = 3;
 
-/// A texel is invalid when more than this fraction of its rays hit back
-/// faces: most of what it sees is the inside of a solid. (Unity's default
-/// is 0.1, which also fails texels that lie partly under a wall; here the
-/// burial planes ([`crate::burial`]) keep their rays in open space, and
-/// one-sided geometry seen from behind across a room is not burial.)
+/// The default back-face tolerance (`backface_tolerance`): a texel is
+/// invalid when more than this fraction of its rays hit back faces, most
+/// of what it sees being the inside of a solid. (Unity's default is 0.1,
+/// which also fails texels that lie partly under a wall; here the burial
+/// planes ([`crate::burial`]) keep their rays in open space, and one-sided
+/// geometry seen from behind across a room is not burial.) The references
+/// (path tracing, photon mapping) use it as well.
 pub const BACKFACE_TOLERANCE: f32 = 0.5;
 
-/// Texel validity's rule: more than `BACKFACE_TOLERANCE` of `rays` met back
-/// faces.
-fn too_many_back_faces(back: u32, rays: u32) -> bool {
-    back as f32 > BACKFACE_TOLERANCE * rays as f32
+/// Texel validity's rule: more than `tolerance` of `rays` met back faces.
+fn too_many_back_faces(back: u32, rays: u32, tolerance: f32) -> bool {
+    back as f32 > tolerance * rays as f32
 }
 
-/// The gather may stop early: after at least 16 rays, more than 90 % met
+/// The gather may stop early (under a tolerance below 0.9): after at least
+/// 16 rays, more than 90 % met
 /// back faces (a texel with half its hemisphere open does that with
 /// probability 3·10⁻⁴ after 16 rays, less after more).
-fn surely_buried(back: u32, cast: u32) -> bool {
-    cast >= 16 && back * 10 > cast * 9
+fn surely_buried(back: u32, cast: u32, tolerance: f32) -> bool {
+    tolerance < 0.9 && cast >= 16 && back * 10 > cast * 9
 }
 
 /// Ray `k` of `rays` from texel `t`: a point of position stratum
@@ -105,10 +107,11 @@ pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<u8>, u64) {
     (parts.into_iter().flatten().collect(), cast)
 }
 
-/// Texel validity from [`validity`]'s back-face counts of `rays` rays each.
-pub fn valid_from_counts(back: &[u8], rays: u32) -> Vec<bool> {
+/// Texel validity from [`validity`]'s back-face counts of `rays` rays each,
+/// with the back-face `tolerance`.
+pub fn valid_from_counts(back: &[u8], rays: u32, tolerance: f32) -> Vec<bool> {
     back.iter()
-        .map(|&b| !too_many_back_faces(b as u32, rays))
+        .map(|&b| !too_many_back_faces(b as u32, rays, tolerance))
         .collect()
 }
 
@@ -135,8 +138,9 @@ pub struct Gathered {
     pub rays: u64,
 }
 
-/// What the gather computes besides the indirect light.
-#[derive(Clone, Copy, Debug, Default)]
+/// What the gather computes besides the indirect light, and its validity
+/// rule.
+#[derive(Clone, Copy, Debug)]
 pub struct Extras {
     /// Accumulate the directional (L1) part; needs the sky radiance.
     pub directional: bool,
@@ -144,6 +148,19 @@ pub struct Extras {
     pub sky: Vec3,
     /// AO distance in metres (0: no AO).
     pub ao_distance: f32,
+    /// The back-face tolerance of texel validity (`backface_tolerance`).
+    pub backface_tolerance: f32,
+}
+
+impl Default for Extras {
+    fn default() -> Self {
+        Extras {
+            directional: false,
+            sky: Vec3::ZERO,
+            ao_distance: 0.0,
+            backface_tolerance: BACKFACE_TOLERANCE,
+        }
+    }
 }
 
 /// One texel's gather.
@@ -252,7 +269,9 @@ impl<'a> Gatherer<'a> {
             // texel needs, the texel is invalid whatever the rest
             // would find (its value is replaced from its chart), so
             // stop: texels inside walls are a quarter of Sponza's.
-            if too_many_back_faces(back, rays) || surely_buried(back, n_cast) {
+            if too_many_back_faces(back, rays, extras.backface_tolerance)
+                || surely_buried(back, n_cast, extras.backface_tolerance)
+            {
                 break;
             }
             n_cast += 1;
@@ -310,7 +329,8 @@ impl<'a> Gatherer<'a> {
         let lum = mean.element_sum() / 3.0;
         TexelGather {
             mean,
-            valid: !too_many_back_faces(back, rays) && !surely_buried(back, n_cast),
+            valid: !too_many_back_faces(back, rays, extras.backface_tolerance)
+                && !surely_buried(back, n_cast, extras.backface_tolerance),
             variance: ((sq / n - lum * lum).max(0.0)) / n,
             directional: dir_sum.map(|b| b / n),
             ao: open as f32 / n,

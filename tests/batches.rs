@@ -52,6 +52,7 @@ fn batched_form_factors_and_gather_equal_the_cpu_path() {
         directional: true,
         sky: Vec3::new(0.2, 0.3, 0.4),
         ao_distance: 0.3,
+        ..Extras::default()
     };
     let gatherer = Gatherer::new(&s, first, &sampled, 32, 7, extras, None);
     let a = gatherer.gather_cpu(&|_| {});

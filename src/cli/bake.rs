@@ -90,6 +90,9 @@ pub struct BakeArgs {
     /// Fold texels' sample points out of walls and solids crossing them: true or false [default: true].
     #[arg(long)]
     pub burial_planes: Option<bool>,
+    /// A texel is invalid when more than this fraction of its rays meet back faces (Unity: 0.1) [default: 0.5].
+    #[arg(long)]
+    pub backface_tolerance: Option<f32>,
     /// Final-gather rays per texel; 0 turns the final gather off [default: 128].
     #[arg(long)]
     pub final_gather: Option<u32>,
@@ -183,6 +186,7 @@ impl BakeArgs {
             final_gather,
             stitch_seams,
             burial_planes,
+            backface_tolerance,
             denoise,
             directional,
             ao_distance,

@@ -120,9 +120,10 @@ impl Surfaces<'_> {
         let uv = &self.geometry.uv_lm[tri as usize];
         let ng = self.geometry.ng_ws[tri as usize];
         let pieces = self.texels.pieces_of(t);
+        let p = self.geometry.p_ws[tri as usize];
         TexelSampler {
             geometry: self.geometry,
-            side: Side::of(self, t),
+            side: Side::with_plane(self.burial, t, ng, p[0]),
             pieces,
             total: pieces.iter().map(|p| p.area).sum(),
             tri,
@@ -131,7 +132,7 @@ impl Surfaces<'_> {
             uv_e1: uv[1] - uv[0],
             uv_e2: uv[2] - uv[0],
             uv_det: (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]),
-            p: self.geometry.p_ws[tri as usize],
+            p,
             ng,
             frame: crate::sampling::frame(ng),
         }
@@ -192,9 +193,11 @@ impl Surfaces<'_> {
         if !side.across(p, side.margin) {
             return Landing::Texel(texel);
         }
+        // `p` lies in `texel`'s plane; a neighbour of the same chart shares
+        // it where it matters, so its planes alone decide.
         let exposed = |u: usize| {
-            let side = Side::of(self, u);
-            !side.across(p, side.margin)
+            let tol = self.burial.margin(u);
+            !self.burial.planes_of(u).iter().any(|c| c.n.dot(p) > c.k + tol)
         };
         let [x, y] = tx.xy[t];
         let mut best: Option<(f32, u32)> = None;

@@ -177,7 +177,12 @@ fn burial_planes(
         rays,
         burial: &open,
     };
-    let burial = burial::compute(&s, config.seed, crate::gather::VALIDITY_RAYS);
+    let burial = burial::compute(
+        &s,
+        config.seed,
+        crate::gather::VALIDITY_RAYS,
+        config.backface_tolerance,
+    );
     log.end("burial");
     burial
 }

@@ -126,7 +126,7 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
     let (pre, validity_rays) = if s.burial.valid.is_empty() {
         let (back, rays) = gather::validity(s, gather::VALIDITY_RAYS, config.seed);
         (
-            gather::valid_from_counts(&back, gather::VALIDITY_RAYS),
+            gather::valid_from_counts(&back, gather::VALIDITY_RAYS, config.backface_tolerance),
             rays,
         )
     } else {
@@ -147,6 +147,7 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
         directional: config.directional == config::DirectionalMode::Sh,
         sky: Vec3::from(config.sky),
         ao_distance: config.ao_distance,
+        backface_tolerance: config.backface_tolerance,
     };
     let gatherer = Gatherer::new(
         s,
