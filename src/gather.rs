@@ -15,9 +15,11 @@
 //! the sky where they escape, sampled emitters with their MIS weight where
 //! they meet one (see [`crate::direct::hemisphere_light`]).
 //!
-//! **Texel validity** (as Unity's): a texel whose rays hit back faces in
-//! more than `BACKFACE_TOLERANCE` of cases lies inside or under geometry;
-//! it is marked invalid and later filled from valid texels of its chart.
+//! **Texel validity** (Unity's rule, with its tolerance raised): a texel
+//! whose rays hit back faces in more than `backface_tolerance` of cases
+//! (default [`BACKFACE_TOLERANCE`], a half) sees mostly the inside of a
+//! solid; it is marked invalid and later filled from valid texels of its
+//! chart. Partly buried texels are the burial planes' ([`crate::burial`]).
 
 use crate::direct::{hemisphere_light, Directional, Lights, Mis};
 use crate::form_factors::raycast::{Landing, Surfaces, TexelSampler};

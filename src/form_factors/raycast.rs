@@ -197,7 +197,11 @@ impl Surfaces<'_> {
         // it where it matters, so its planes alone decide.
         let exposed = |u: usize| {
             let tol = self.burial.margin(u);
-            !self.burial.planes_of(u).iter().any(|c| c.n.dot(p) > c.k + tol)
+            !self
+                .burial
+                .planes_of(u)
+                .iter()
+                .any(|c| c.n.dot(p) > c.k + tol)
         };
         let [x, y] = tx.xy[t];
         let mut best: Option<(f32, u32)> = None;

@@ -47,6 +47,7 @@ fn final_gather(c: &mut Criterion) {
         directional: false,
         sky: Vec3::from(bake.config.sky),
         ao_distance: 0.0,
+        backface_tolerance: bake.config.backface_tolerance,
     };
     let config = &bake.config;
     let mut group = c.benchmark_group("final_gather_cornell");
