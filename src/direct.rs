@@ -554,6 +554,8 @@ pub fn texels(
                     continue;
                 }
                 let mut rng = Stream::new(seed, PURPOSE, t as u64);
+                // The texel's sampling constants, read once for all its points.
+                let sampler = s.texel_sampler(t as u32);
                 // One point: the texel's pieces (see `pieces_direct`);
                 // s × s points: spread over the texel's square.
                 let (centre, (ph, pb, pr)) = if supersample <= 1 {
@@ -561,13 +563,13 @@ pub fn texels(
                 } else {
                     let m = supersample * supersample;
                     let points = (0..m)
-                        .map(|k| s.sample_texel(t as u32, stratified(k, m, Vec2::splat(0.5))))
+                        .map(|k| sampler.sample(stratified(k, m, Vec2::splat(0.5))))
                         .collect();
                     (points, (Vec3::ZERO, [Vec3::ZERO; 3], 0))
                 };
                 let mut spread = |count: u32| -> Vec<(Vec3, Vec3)> {
                     (0..count)
-                        .map(|k| s.sample_texel(t as u32, stratified(k, count, rng.next_vec2())))
+                        .map(|k| sampler.sample(stratified(k, count, rng.next_vec2())))
                         .collect()
                 };
                 let points = spread(samples);
