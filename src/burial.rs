@@ -86,6 +86,17 @@ pub struct Side<'a> {
 }
 
 impl<'a> Side<'a> {
+    /// The side of `planes` within the plane of normal `ng` through `p0`.
+    #[inline]
+    pub fn new(planes: &'a [Clip], ng: Vec3, p0: Vec3, margin: f32) -> Side<'a> {
+        Side {
+            planes,
+            ng,
+            d: ng.dot(p0),
+            margin,
+        }
+    }
+
     /// Texel `t`'s side, given its largest triangle's normal `ng` and a
     /// corner `p0` of it (what [`Surfaces::texel_sampler`] has read
     /// already).
@@ -94,28 +105,13 @@ impl<'a> Side<'a> {
         if !burial.has_planes(t) {
             return Side::default();
         }
-        Side {
-            planes: burial.planes_of(t),
-            ng,
-            d: ng.dot(p0),
-            margin: burial.margin[t],
-        }
+        Side::new(burial.planes_of(t), ng, p0, burial.margin[t])
     }
 
     /// Texel `t`'s side.
     pub fn of(s: &Surfaces<'a>, t: usize) -> Side<'a> {
-        if !s.burial.has_planes(t) {
-            return Side::default();
-        }
-        let planes = s.burial.planes_of(t);
         let tri = s.texels.triangle[t] as usize;
-        let ng = s.geometry.ng_ws[tri];
-        Side {
-            planes,
-            ng,
-            d: ng.dot(s.geometry.p_ws[tri][0]),
-            margin: s.burial.margin[t],
-        }
+        Side::with_plane(s.burial, t, s.geometry.ng_ws[tri], s.geometry.p_ws[tri][0])
     }
 
     /// `p` lies in the texel's plane, more than `tol` beyond one of its
@@ -234,6 +230,14 @@ impl Burial {
         self.split
             .get(t / 64)
             .is_some_and(|w| w >> (t % 64) & 1 == 1)
+    }
+
+    /// `p` lies more than texel `t`'s margin beyond one of its planes
+    /// (whether or not in its plane: see [`Side::across`]).
+    #[inline]
+    pub fn beyond(&self, t: usize, p: Vec3) -> bool {
+        let tol = self.margin(t);
+        self.planes_of(t).iter().any(|c| c.n.dot(p) > c.k + tol)
     }
 
     /// Every ray of texel `t`'s validity estimate met a back face: it lies
@@ -400,12 +404,7 @@ fn texel(s: &Surfaces, t: usize, seed: u64) -> TexelBurial {
         };
     }
     let tri = s.texels.triangle[t] as usize;
-    let side = Side {
-        planes: &planes,
-        ng,
-        d: ng.dot(s.geometry.p_ws[tri][0]),
-        margin: lift,
-    };
+    let side = Side::new(&planes, ng, s.geometry.p_ws[tri][0], lift);
     // Points of the texel's square on its largest triangle's plane (the
     // fast sampler's, clamped onto the triangle): the planes cut that plane.
     let mut exposed = 0u32;

@@ -180,13 +180,7 @@ impl Surfaces<'_> {
         let t = texel as usize;
         // Most hits on such texels are on their side: the planes alone
         // tell, before the texel's own plane is read.
-        let tol = self.burial.margin(t);
-        if !self
-            .burial
-            .planes_of(t)
-            .iter()
-            .any(|c| c.n.dot(p) > c.k + tol)
-        {
+        if !self.burial.beyond(t, p) {
             return Landing::Texel(texel);
         }
         let side = Side::of(self, t);
@@ -195,14 +189,6 @@ impl Surfaces<'_> {
         }
         // `p` lies in `texel`'s plane; a neighbour of the same chart shares
         // it where it matters, so its planes alone decide.
-        let exposed = |u: usize| {
-            let tol = self.burial.margin(u);
-            !self
-                .burial
-                .planes_of(u)
-                .iter()
-                .any(|c| c.n.dot(p) > c.k + tol)
-        };
         let [x, y] = tx.xy[t];
         let mut best: Option<(f32, u32)> = None;
         for dy in -1i64..=1 {
@@ -214,7 +200,7 @@ impl Surfaces<'_> {
                 if u == texel
                     || tx.instance[ui] != tx.instance[t]
                     || tx.chart[ui] != tx.chart[t]
-                    || !exposed(ui)
+                    || self.burial.beyond(ui, p)
                 {
                     continue;
                 }
