@@ -157,6 +157,11 @@ pub struct BakeConfig {
     pub emitters: EmitterSampling,
     /// Final-gather rays per texel (0: off, texels interpolate the patch solution).
     pub final_gather: u32,
+    /// Adaptive final gather: a texel stops at 32, 64, … rays once the
+    /// estimated standard error of its total light is at most this
+    /// fraction of it (0: every texel casts `final_gather` rays). Off
+    /// with `directional = "sh"` or AO, which need every ray.
+    pub gather_threshold: f32,
     /// Make both sides of UV seams on continuous surfaces agree.
     pub stitch_seams: bool,
     /// Fold every texel's sample points out of walls and solids that cross
@@ -168,6 +173,15 @@ pub struct BakeConfig {
     pub backface_tolerance: f32,
     /// Edge-aware à-trous filtering of the gathered indirect light.
     pub denoise: bool,
+    /// Bake light probes for dynamic objects ([`crate::probes`]).
+    pub probes: bool,
+    /// Probe spacing in metres (a `probe_volume` node may set its own).
+    pub probe_spacing: f32,
+    /// Most probes in all: where the grids would hold more, every spacing
+    /// grows by one factor until they fit.
+    pub probe_budget: u32,
+    /// Rays per probe (a spherical Fibonacci set).
+    pub probe_rays: u32,
     /// Directional lightmaps (needs the final gather).
     pub directional: DirectionalMode,
     /// Ambient-occlusion distance in metres (0: no AO map; needs the final gather).
@@ -220,10 +234,15 @@ impl BakeConfig {
             sky: [0.0; 3],
             emitters: EmitterSampling::Auto,
             final_gather: 128,
+            gather_threshold: 0.005,
             stitch_seams: true,
             burial_planes: true,
             backface_tolerance: 0.5,
             denoise: true,
+            probes: true,
+            probe_spacing: 1.0,
+            probe_budget: 16_384,
+            probe_rays: 256,
             directional: DirectionalMode::None,
             ao_distance: 0.0,
             supersample: 1,
@@ -244,6 +263,8 @@ impl BakeConfig {
             rays_per_patch: 128,
             direct_samples: 16,
             final_gather: 32,
+            probe_budget: 2048,
+            probe_rays: 128,
             tolerance: 1e-3,
             max_texels: 1 << 18,
             ..m
@@ -258,6 +279,8 @@ impl BakeConfig {
             rays_per_patch: 1024,
             direct_samples: 256,
             final_gather: 512,
+            probe_budget: 65_536,
+            probe_rays: 1024,
             tolerance: 1e-5,
             max_texels: 1 << 22,
             ..m
@@ -331,6 +354,18 @@ impl BakeConfig {
         }
         if self.supersample < 1 || self.supersample > 8 {
             return bad("supersample", "must be in 1..=8");
+        }
+        if !(self.probe_spacing.is_finite() && self.probe_spacing > 0.0) {
+            return bad("probe_spacing", "must be a positive number of metres");
+        }
+        if self.probe_budget == 0 || self.probe_budget > 1 << 24 {
+            return bad("probe_budget", "must be in 1..=16777216");
+        }
+        if self.probe_rays == 0 || self.probe_rays > 1 << 16 {
+            return bad("probe_rays", "must be in 1..=65536");
+        }
+        if !(self.gather_threshold >= 0.0 && self.gather_threshold < 1.0) {
+            return bad("gather_threshold", "must be in [0, 1)");
         }
         if !(self.backface_tolerance > 0.0 && self.backface_tolerance <= 1.0) {
             return bad("backface_tolerance", "must be in (0, 1]");

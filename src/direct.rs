@@ -157,13 +157,18 @@ pub struct EmitterSample {
 /// Irradiance / π at `p` (normal `n`) from one punctual light, unshadowed,
 /// and the direction and distance to test for shadow.
 pub fn punctual_irradiance(light: &Light, p: Vec3, n: Vec3) -> Option<(Vec3, Vec3, f32)> {
-    let pi = std::f32::consts::PI;
+    let (e, to_light, dist) = punctual_incident(light, p)?;
+    let cos = n.dot(to_light);
+    (cos > 0.0).then(|| (e * cos / std::f32::consts::PI, to_light, dist))
+}
+
+/// Irradiance at `p` on a surface facing one punctual light (normal
+/// incidence), unshadowed, with the direction and distance to the light:
+/// I / d² × the spec's range window and cone falloff for point and spot
+/// lights, E for a directional light.
+pub fn punctual_incident(light: &Light, p: Vec3) -> Option<(Vec3, Vec3, f32)> {
     match light.kind {
-        LightKind::Directional => {
-            let to_light = -light.direction;
-            let cos = n.dot(to_light);
-            (cos > 0.0).then(|| (light.intensity * cos / pi, to_light, f32::INFINITY))
-        }
+        LightKind::Directional => Some((light.intensity, -light.direction, f32::INFINITY)),
         LightKind::Point | LightKind::Spot { .. } => {
             let d = light.position - p;
             let dist2 = d.length_squared();
@@ -172,10 +177,6 @@ pub fn punctual_irradiance(light: &Light, p: Vec3, n: Vec3) -> Option<(Vec3, Vec
             }
             let dist = dist2.sqrt();
             let to_light = d / dist;
-            let cos = n.dot(to_light);
-            if cos <= 0.0 {
-                return None;
-            }
             let mut atten = 1.0 / dist2;
             if let Some(range) = light.range.filter(|r| *r > 0.0) {
                 // KHR_lights_punctual's recommended range window.
@@ -193,7 +194,7 @@ pub fn punctual_irradiance(light: &Light, p: Vec3, n: Vec3) -> Option<(Vec3, Vec
                 let a = (cd * scale + offset).clamp(0.0, 1.0);
                 atten *= a * a;
             }
-            (atten > 0.0).then(|| (light.intensity * cos * atten / pi, to_light, dist))
+            (atten > 0.0).then(|| (light.intensity * atten, to_light, dist))
         }
     }
 }

@@ -25,7 +25,7 @@ use crate::direct::{hemisphere_light, Directional, Lights, Mis};
 use crate::form_factors::raycast::{Landing, Surfaces, TexelSampler};
 use crate::raycast::batch::BatchCaster;
 use crate::raycast::Hit;
-use crate::sampling::{cosine_hemisphere, offset_ray_origin, stratified, Stream};
+use crate::sampling::{cosine_hemisphere, offset_ray_origin, Net, Stream};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -54,20 +54,44 @@ fn surely_buried(back: u32, cast: u32, tolerance: f32) -> bool {
     tolerance < 0.9 && cast >= 16 && back * 10 > cast * 9
 }
 
-/// Ray `k` of `rays` from texel `t`: a point of position stratum
-/// `strata[k]` (a random pairing, see [`Stream::permutation`]) and a
-/// cosine-weighted direction of stratum `k`. Returns (point, normal, direction).
+/// Ray `k` from a texel: a point of the position net and a
+/// cosine-weighted direction of the direction net (two independently
+/// scrambled (0, 2)-sequences, [`Net`], so that every power-of-two prefix
+/// of the rays is stratified in position and in direction, and the
+/// adaptive gather may stop there). Returns (point, normal, direction).
 #[inline(always)]
-fn texel_ray(
-    sampler: &TexelSampler,
-    k: u32,
-    rays: u32,
-    strata: &[u32],
-    rng: &mut Stream,
-) -> (Vec3, Vec3, Vec3) {
-    let (p, ng) = sampler.sample(stratified(strata[k as usize], rays, rng.next_vec2()));
-    let dir = sampler.to_world(cosine_hemisphere(stratified(k, rays, rng.next_vec2())));
+fn texel_ray(sampler: &TexelSampler, k: u32, nets: &(Net, Net)) -> (Vec3, Vec3, Vec3) {
+    let (p, ng) = sampler.sample(nets.0.point(k));
+    let dir = sampler.to_world(cosine_hemisphere(nets.1.point(k)));
     (p, ng, dir)
+}
+
+/// A texel's two nets (position, direction).
+fn texel_nets(seed: u64, t: usize) -> (Net, Net) {
+    let mut rng = Stream::new(seed, PURPOSE, t as u64);
+    (Net::shuffled(&mut rng), Net::new(&mut rng))
+}
+
+/// The adaptive gather's first checkpoint: below it no variance estimate is
+/// trusted.
+const FIRST_CHECKPOINT: u32 = 32;
+
+/// The adaptive gather's stopping rule at a checkpoint (a power of two ≥
+/// [`FIRST_CHECKPOINT`], below the rays asked for): the estimated standard
+/// error of the texel's total, √(s²/n), is at most `threshold` × the total
+/// (`known` direct light + the gathered mean). Sunlit texels, whose total is
+/// mostly the exactly sampled sun, stop early; shadowed ones, whose light
+/// the gather carries, cast every ray. A texel whose rays have seen no
+/// light yet never stops: its zero says nothing about what the rest would
+/// find (the rays of a floor far from a lamp rarely meet it).
+fn converged(sum: f32, sq: f32, n: u32, known: f32, threshold: f32) -> bool {
+    if sum <= 0.0 {
+        return false;
+    }
+    let nf = n as f32;
+    let mean = sum / nf;
+    let var = (sq / nf - mean * mean).max(0.0) * nf / (nf - 1.0);
+    (var / nf).sqrt() <= threshold * (known + mean)
 }
 
 /// Rays per texel of the validity estimate made before the gather.
@@ -91,11 +115,11 @@ pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<u8>, u64) {
             let mut out = Vec::with_capacity(range.len());
             for t in range {
                 let mut rng = Stream::new(seed, VALIDITY_PURPOSE, t as u64);
-                let strata = rng.permutation(rays);
+                let nets = (Net::shuffled(&mut rng), Net::new(&mut rng));
                 let sampler = s.texel_sampler(t as u32);
                 let mut back = 0u8;
                 for k in 0..rays {
-                    let (p, ng, dir) = texel_ray(&sampler, k, rays, &strata, &mut rng);
+                    let (p, ng, dir) = texel_ray(&sampler, k, &nets);
                     if let (Landing::BackFace, _) = s.trace(offset_ray_origin(p, ng), dir) {
                         back += 1;
                     }
@@ -152,6 +176,9 @@ pub struct Extras {
     pub ao_distance: f32,
     /// The back-face tolerance of texel validity (`backface_tolerance`).
     pub backface_tolerance: f32,
+    /// The adaptive gather's relative standard error (`gather_threshold`;
+    /// 0: every texel casts every ray). See [`converged`].
+    pub threshold: f32,
 }
 
 impl Default for Extras {
@@ -161,6 +188,7 @@ impl Default for Extras {
             sky: Vec3::ZERO,
             ao_distance: 0.0,
             backface_tolerance: BACKFACE_TOLERANCE,
+            threshold: 0.0,
         }
     }
 }
@@ -188,6 +216,9 @@ pub struct Gatherer<'a> {
     seed: u64,
     extras: Extras,
     direct: Option<(&'a Lights, Mis)>,
+    /// Per texel, the direct light the gather does not estimate (punctual
+    /// lights, emitters' light samples): the adaptive gather's yardstick.
+    known: Option<&'a [Vec3]>,
 }
 
 impl<'a> Gatherer<'a> {
@@ -221,18 +252,26 @@ impl<'a> Gatherer<'a> {
             seed,
             extras,
             direct,
+            known: None,
         }
+    }
+
+    /// The direct light per texel that the gather's rays do not estimate,
+    /// against which the adaptive gather ([`Extras::threshold`]) judges a
+    /// texel's noise.
+    pub fn with_known(mut self, known: &'a [Vec3]) -> Self {
+        self.known = Some(known);
+        self
     }
 
     /// Every ray texel `t` may cast, in order (origin off the surface,
     /// direction): what [`Gatherer::texel`] casts, before it stops early
     /// on an invalid texel.
     fn rays_of(&self, t: usize, out: &mut [(Vec3, Vec3)]) {
-        let mut rng = Stream::new(self.seed, PURPOSE, t as u64);
-        let strata = rng.permutation(self.rays);
+        let nets = texel_nets(self.seed, t);
         let sampler = self.s.texel_sampler(t as u32);
         for (k, o) in out.iter_mut().enumerate().take(self.rays as usize) {
-            let (p, ng, dir) = texel_ray(&sampler, k as u32, self.rays, &strata, &mut rng);
+            let (p, ng, dir) = texel_ray(&sampler, k as u32, &nets);
             *o = (offset_ray_origin(p, ng), dir);
         }
     }
@@ -257,11 +296,16 @@ impl<'a> Gatherer<'a> {
                 light: Vec3::ZERO,
             };
         }
-        let mut rng = Stream::new(self.seed, PURPOSE, t as u64);
-        // Pair position strata with direction strata at random.
-        let strata = rng.permutation(rays);
+        let nets = texel_nets(self.seed, t);
         let sampler = s.texel_sampler(t as u32);
+        let known = self.known.map_or(0.0, |k| k[t].element_sum() / 3.0);
+        // The rule judges the irradiance only: the directional part and AO
+        // need every ray.
+        let adaptive = extras.threshold > 0.0 && !extras.directional && extras.ao_distance <= 0.0;
         let (mut sum, mut back, mut sq) = (Vec3::ZERO, 0u32, 0.0f32);
+        // Luminance of each ray's whole contribution (indirect and
+        // hemisphere direct), for the stopping rule.
+        let (mut all, mut all_sq) = (0.0f32, 0.0f32);
         let mut dir_sum: Directional = [Vec3::ZERO; 3];
         let mut open = 0u32;
         let mut light = Vec3::ZERO;
@@ -276,17 +320,27 @@ impl<'a> Gatherer<'a> {
             {
                 break;
             }
+            if adaptive
+                && n_cast >= FIRST_CHECKPOINT
+                && n_cast.is_power_of_two()
+                && converged(all, all_sq, n_cast, known, extras.threshold)
+            {
+                break;
+            }
             n_cast += 1;
-            let (p, ng, dir) = texel_ray(&sampler, k, rays, &strata, &mut rng);
+            let (p, ng, dir) = texel_ray(&sampler, k, &nets);
             // Radiance for the directional part: everything seen.
             let mut seen = Vec3::ZERO;
+            let mut indirect = Vec3::ZERO;
             let hit = cast(k, offset_ray_origin(p, ng), dir);
             let landing = match hit {
                 Some(h) => s.land(h.tri, h.u, h.v, dir),
                 None => Landing::Escaped,
             };
+            let mut ray_light = Vec3::ZERO;
             if let Some((lights, mis)) = self.direct {
-                light += hemisphere_light(s, lights, mis, (p, ng, dir), (landing, hit));
+                ray_light = hemisphere_light(s, lights, mis, (p, ng, dir), (landing, hit));
+                light += ray_light;
             }
             if extras.ao_distance > 0.0 && hit.is_none_or(|h| h.t >= extras.ao_distance) {
                 open += 1;
@@ -302,6 +356,7 @@ impl<'a> Gatherer<'a> {
                         l += s.scene.emission_at(m, uv0);
                     }
                     sum += l;
+                    indirect = l;
                     let lum = l.element_sum() / 3.0;
                     sq += lum * lum;
                     seen = l;
@@ -313,6 +368,9 @@ impl<'a> Gatherer<'a> {
                 (Landing::Escaped, _) => seen = extras.sky,
                 _ => {}
             }
+            let whole = (indirect + ray_light).element_sum() / 3.0;
+            all += whole;
+            all_sq += whole * whole;
             if extras.directional {
                 // b = ∫ L ω dω / 2π with pdf cos θ / π: the normal
                 // part of ω / (2 cos θ) is exactly n / 2; the
@@ -331,7 +389,7 @@ impl<'a> Gatherer<'a> {
         let lum = mean.element_sum() / 3.0;
         TexelGather {
             mean,
-            valid: !too_many_back_faces(back, rays, extras.backface_tolerance)
+            valid: !too_many_back_faces(back, n_cast, extras.backface_tolerance)
                 && !surely_buried(back, n_cast, extras.backface_tolerance),
             variance: ((sq / n - lum * lum).max(0.0)) / n,
             directional: dir_sum.map(|b| b / n),

@@ -48,6 +48,7 @@ pub mod photon;
 pub mod pipeline;
 #[cfg(feature = "preview")]
 pub mod preview;
+pub mod probes;
 pub mod progress;
 pub mod raycast;
 pub mod report;

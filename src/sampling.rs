@@ -111,6 +111,121 @@ pub fn stratified(i: u32, n: u32, jitter: Vec2) -> Vec2 {
     )
 }
 
+/// The first two dimensions of the Sobol sequence, a (0, 2)-sequence in
+/// base 2: every aligned block of 2ᵐ consecutive points is a (0, m, 2)-net
+/// (one point in each of the 2ᵐ boxes of any shape 2⁻ᵃ × 2⁻ᵇ, a + b = m).
+/// Returns the points' 32-bit fixed-point coordinates.
+fn sobol02(i: u32) -> (u32, u32) {
+    let b = i.to_le_bytes();
+    let y = SOBOL1[0][b[0] as usize]
+        ^ SOBOL1[1][b[1] as usize]
+        ^ SOBOL1[2][b[2] as usize]
+        ^ SOBOL1[3][b[3] as usize];
+    (i.reverse_bits(), y)
+}
+
+/// Dimension 1 of [`sobol02`] by bytes: `SOBOL1[j][b]` is the XOR of the
+/// direction numbers of the set bits of byte `b` at byte position `j`. The
+/// direction numbers are vₖ = vₖ₋₁ ⊕ (vₖ₋₁ ≫ 1) from v₀ = 2³¹ (Pascal's
+/// matrix); the scrambled indices use all 32 bits, so a bit loop would
+/// cost 32 steps per point.
+static SOBOL1: [[u32; 256]; 4] = sobol1_tables();
+
+const fn sobol1_tables() -> [[u32; 256]; 4] {
+    let mut v = [0u32; 32];
+    v[0] = 1 << 31;
+    let mut k = 1;
+    while k < 32 {
+        v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+        k += 1;
+    }
+    let mut t = [[0u32; 256]; 4];
+    let mut j = 0;
+    while j < 4 {
+        let mut b = 0;
+        while b < 256 {
+            let mut x = 0u32;
+            let mut bit = 0;
+            while bit < 8 {
+                if b & (1 << bit) != 0 {
+                    x ^= v[j * 8 + bit];
+                }
+                bit += 1;
+            }
+            t[j][b] = x;
+            b += 1;
+        }
+        j += 1;
+    }
+    t
+}
+
+/// Laine and Karras's hash (as improved by Burley 2020, "Practical
+/// Hash-based Owen Scrambling", JCGT 9(4)): a bijection in which each bit
+/// of the result is its input bit flipped by a hash of the *lower* bits.
+#[inline]
+fn laine_karras(mut x: u32, seed: u32) -> u32 {
+    x = x.wrapping_add(seed);
+    x ^= x.wrapping_mul(0x6c50_b47c);
+    x ^= x.wrapping_mul(0xb82f_1e52);
+    x ^= x.wrapping_mul(0xc7af_e638);
+    x ^= x.wrapping_mul(0x8d22_f6e6);
+    x
+}
+
+/// A nested uniform scramble of a sample index (Burley 2020 §4): each bit
+/// flipped by a hash of the bits above it, which maps every aligned block
+/// of 2ᵐ indices onto an aligned block.
+#[inline]
+fn shuffle(x: u32, seed: u32) -> u32 {
+    laine_karras(x.reverse_bits(), seed).reverse_bits()
+}
+
+/// A scrambled (0, 2)-sequence for one texel's (or probe's) samples: point
+/// `k` is uniform over the unit square, and every prefix of 2ᵐ points is a
+/// (0, m, 2)-net, so an estimate may stop after any power of two of its
+/// samples and still be stratified. The coordinates are scrambled by a
+/// random digital shift (an XOR, which keeps nets nets). Two nets of one
+/// estimate are decorrelated by shuffling one's index with a nested
+/// uniform scramble ([`Net::shuffled`]), whose aligned blocks of 2ᵐ
+/// indices are aligned blocks, i.e. (0, m, 2)-nets, again.
+#[derive(Clone, Copy, Debug)]
+pub struct Net {
+    shuffle: Option<u32>,
+    x: u32,
+    y: u32,
+}
+
+impl Net {
+    /// A net with its digital shift drawn from `rng`.
+    pub fn new(rng: &mut Stream) -> Net {
+        Net {
+            shuffle: None,
+            x: rng.0.random(),
+            y: rng.0.random(),
+        }
+    }
+
+    /// A net with its shift and index shuffle drawn from `rng`: to pair
+    /// with a [`Net::new`] of the same estimate.
+    pub fn shuffled(rng: &mut Stream) -> Net {
+        Net {
+            shuffle: Some(rng.0.random()),
+            ..Net::new(rng)
+        }
+    }
+
+    /// Point `k`.
+    #[inline]
+    pub fn point(&self, k: u32) -> Vec2 {
+        let i = self.shuffle.map_or(k, |seed| shuffle(k, seed));
+        let (x, y) = sobol02(i);
+        // 24 bits: exactly representable, and strictly below 1.
+        let f = |v: u32| (v >> 8) as f32 * (1.0 / (1u32 << 24) as f32);
+        Vec2::new(f(x ^ self.x), f(y ^ self.y))
+    }
+}
+
 /// The shadow ray between surface points `p` (normal `np`) and `q` (normal
 /// `nq`): both ends moved off their surfaces towards each other by
 /// [`offset_ray_origin`], so neither end's triangle is hit. Returns
@@ -220,6 +335,61 @@ mod tests {
                 .sum::<Vec2>()
                 / n as f32;
             assert!((mean - Vec2::splat(0.5)).length() < 1e-4, "n = {n}: {mean}");
+        }
+    }
+
+    /// Every prefix of 2ᵐ points of a scrambled net has one point in each
+    /// box of every shape 2⁻ᵃ × 2⁻ᵇ with a + b = m.
+    #[test]
+    fn net_prefixes_are_nets() {
+        for seed in 0..4 {
+            let mut rng = Stream::new(seed, 3, 9);
+            let net = if seed % 2 == 0 {
+                Net::new(&mut rng)
+            } else {
+                Net::shuffled(&mut rng)
+            };
+            for m in 0..=8u32 {
+                let n = 1u32 << m;
+                let pts: Vec<Vec2> = (0..n).map(|k| net.point(k)).collect();
+                for a in 0..=m {
+                    let (cols, rows) = (1u32 << a, 1u32 << (m - a));
+                    let mut seen = vec![false; n as usize];
+                    for p in &pts {
+                        let c = (p.y * rows as f32) as u32 * cols + (p.x * cols as f32) as u32;
+                        assert!(!seen[c as usize], "seed {seed}, m {m}, a {a}");
+                        seen[c as usize] = true;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Over many scrambles, point k is uniform: its mean is the centre.
+    #[test]
+    fn net_points_are_uniform() {
+        for k in [0u32, 1, 5, 100] {
+            let mean: Vec2 = (0..4096)
+                .map(|s| Net::shuffled(&mut Stream::new(s, 3, 1)).point(k))
+                .sum::<Vec2>()
+                / 4096.0;
+            assert!((mean - Vec2::splat(0.5)).length() < 0.02, "k {k}: {mean}");
+        }
+    }
+
+    /// The byte tables give the direction-number product bit by bit.
+    #[test]
+    fn sobol_tables_match_the_bit_loop() {
+        for i in [0u32, 1, 2, 3, 255, 256, 12345, 0xdead_beef, u32::MAX] {
+            let (mut bits, mut v, mut y) = (i, 1u32 << 31, 0u32);
+            while bits != 0 {
+                if bits & 1 != 0 {
+                    y ^= v;
+                }
+                bits >>= 1;
+                v ^= v >> 1;
+            }
+            assert_eq!(sobol02(i).1, y, "{i}");
         }
     }
 

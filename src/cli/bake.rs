@@ -96,6 +96,22 @@ pub struct BakeArgs {
     /// Final-gather rays per texel; 0 turns the final gather off [default: 128].
     #[arg(long)]
     pub final_gather: Option<u32>,
+    /// Light probes for dynamic objects: on or off [default: on].
+    #[arg(long, value_parser = parse_on_off, value_name = "on|off")]
+    pub probes: Option<bool>,
+    /// Probe spacing in metres (`probe_volume` nodes may set their own) [default: 1].
+    #[arg(long, value_name = "METRES")]
+    pub probe_spacing: Option<f32>,
+    /// Most probes in all; the spacing grows to fit [default: 16384; preview 2048, production 65536].
+    #[arg(long)]
+    pub probe_budget: Option<u32>,
+    /// Rays per probe [default: 256; preview 128, production 1024].
+    #[arg(long)]
+    pub probe_rays: Option<u32>,
+    /// Adaptive gather: a texel stops at 32, 64, … rays once its estimated relative
+    /// standard error is at most this; 0 casts every ray [default: 0.005].
+    #[arg(long)]
+    pub gather_threshold: Option<f32>,
     /// Emissive surfaces: sampled per texel (`direct`), through the radiosity solve (`radiosity`),
     /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
     #[arg(long, value_enum)]
@@ -144,6 +160,15 @@ pub struct BakeArgs {
     pub stats: bool,
 }
 
+/// `on`/`off` (or `true`/`false`).
+fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" | "true" => Ok(true),
+        "off" | "false" => Ok(false),
+        _ => Err(format!("expected on or off, got {s:?}")),
+    }
+}
+
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ProgressMode {
     Bars,
@@ -184,6 +209,11 @@ impl BakeArgs {
             sky,
             emitters,
             final_gather,
+            gather_threshold,
+            probes,
+            probe_spacing,
+            probe_budget,
+            probe_rays,
             stitch_seams,
             burial_planes,
             backface_tolerance,

@@ -148,6 +148,14 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
         sky: Vec3::from(config.sky),
         ao_distance: config.ao_distance,
         backface_tolerance: config.backface_tolerance,
+        threshold: config.gather_threshold,
+    };
+    // What the gather's rays do not estimate: with `gathering`, the
+    // punctual lights and light samples; else the whole direct pass.
+    let known = if direct.gathering {
+        &direct.parts.light
+    } else {
+        &direct.texel
     };
     let gatherer = Gatherer::new(
         s,
@@ -157,7 +165,8 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
         config.seed,
         extras,
         direct.gathering.then_some((&direct.lights, direct.mis)),
-    );
+    )
+    .with_known(known);
     let g = final_gather(&gatherer, gpu.as_deref(), &advance, &mut log.warnings);
     log.end("final_gather");
     rays.gather = g.rays;

@@ -375,6 +375,15 @@ fn import_nodes(
             .name()
             .map(str::to_owned)
             .unwrap_or_else(|| format!("node{}", node.index()));
+        let extras = radbake_extras(ctx, &node, &location)?;
+        scene.warnings.extend(extras.unknown.iter().cloned());
+        if let Some(spacing) = extras.probe_volume {
+            scene.probe_volumes.push(crate::probes::VolumeSpec {
+                name: node_name.clone(),
+                world_from_box: world,
+                spacing,
+            });
+        }
         if let Some(mesh) = node.mesh() {
             let slot = match mesh_slot.get(&mesh.index()) {
                 Some(&s) => Some(s),
@@ -403,12 +412,17 @@ fn import_nodes(
                         "{location}: transform has zero scale; instance skipped"
                     ));
                 } else {
-                    scene.instances.push(Instance {
+                    let instance = Instance {
                         node: node_name.clone(),
                         node_index: node.index(),
                         mesh: mesh_index,
                         world_from_local: world,
-                    });
+                    };
+                    if extras.dynamic {
+                        scene.dynamic.push(instance);
+                    } else {
+                        scene.instances.push(instance);
+                    }
                 }
             }
         }
@@ -433,6 +447,68 @@ fn import_nodes(
         }
     }
     Ok(())
+}
+
+/// What a node's `extras.radbake` says.
+#[derive(Default)]
+struct NodeExtras {
+    /// `probe_volume`: the node's box holds a probe grid, with this spacing
+    /// (`None`: the bake's).
+    probe_volume: Option<Option<f32>>,
+    /// `dynamic: true`: not baked, lit by probes.
+    dynamic: bool,
+    /// Keys this version does not know (warned about).
+    unknown: Vec<String>,
+}
+
+/// Reads `extras.radbake` of `node`: `{"probe_volume": {"spacing": m}}`
+/// and `{"dynamic": true}`. A spacing that is not a positive number is an
+/// error naming the node; a key this version does not know is a warning.
+fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeExtras> {
+    let mut out = NodeExtras::default();
+    let Some(raw) = node.extras() else {
+        return Ok(out);
+    };
+    let value: serde_json::Value = serde_json::from_str(raw.get())
+        .map_err(|e| ctx.invalid(format!("{location}.extras"), e.to_string()))?;
+    let Some(rb) = value.get("radbake") else {
+        return Ok(out);
+    };
+    let at = format!("{location}.extras.radbake");
+    let obj = rb
+        .as_object()
+        .ok_or_else(|| ctx.invalid(&at, "must be an object"))?;
+    for (key, v) in obj {
+        match key.as_str() {
+            "dynamic" => {
+                out.dynamic = v
+                    .as_bool()
+                    .ok_or_else(|| ctx.invalid(format!("{at}.dynamic"), "must be true or false"))?;
+            }
+            "probe_volume" => {
+                let spacing = match v.get("spacing") {
+                    None => None,
+                    Some(s) => match s.as_f64() {
+                        Some(x) if x.is_finite() && x > 0.0 => Some(x as f32),
+                        _ => {
+                            return Err(ctx.invalid(
+                                format!("{at}.probe_volume.spacing"),
+                                "must be a positive number of metres",
+                            ))
+                        }
+                    },
+                };
+                if !v.is_object() {
+                    return Err(ctx.invalid(format!("{at}.probe_volume"), "must be an object"));
+                }
+                out.probe_volume = Some(spacing);
+            }
+            other => out.unknown.push(format!(
+                "{at}: unknown key `{other}` ignored (known: dynamic, probe_volume)"
+            )),
+        }
+    }
+    Ok(out)
 }
 
 /// Every buffer's bytes, and the external files read.

@@ -230,6 +230,11 @@ pub struct Scene {
     pub meshes: Vec<Mesh>,
     /// Node instances of the meshes.
     pub instances: Vec<Instance>,
+    /// Instances of nodes marked `extras.radbake.dynamic`: left out of the
+    /// bake (no lightmap, no shadow), lit by the probes.
+    pub dynamic: Vec<Instance>,
+    /// Probe boxes placed as nodes with `extras.radbake.probe_volume`.
+    pub probe_volumes: Vec<crate::probes::VolumeSpec>,
     /// Materials; the last one may be [`Material::fallback`].
     pub materials: Vec<Material>,
     /// Decoded textures.

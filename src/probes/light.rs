@@ -1,0 +1,228 @@
+//! The light at one probe: incident radiance over the whole sphere, all
+//! bounces, projected onto L2 SH ([`super::sh`]):
+//! Lₗₘ = ∫ L(ω) Yₗₘ(ω) dω.
+//!
+//! - **Rays** in a spherical Fibonacci set (Keinert et al. 2015), turned by
+//!   a random rotation per probe, each of weight 4π/N: a set whose sums of
+//!   Yₗₘ are near zero for l ≥ 1, so a uniform field projects to its DC
+//!   term alone. A ray that meets a surface reads its outgoing radiance as
+//!   the final gather does: the hit texel's albedo × its lightmap value
+//!   (incident irradiance / π, every bounce), plus emission where the
+//!   emitter is not sampled; a ray that leaves sees the sky.
+//! - **Emitters** whose emission the direct pass samples are sampled here
+//!   too, by power, and the two estimators are combined by the power
+//!   heuristic with sample counts (Veach 1997 §9.2), as in the direct pass.
+//! - **Punctual lights** enter exactly: a delta direction of irradiance E
+//!   projects to E · Yₗₘ(ω_light), shadowed by one ray.
+//! - **Validity**: a probe whose rays meet more than a quarter back faces
+//!   is inside a solid (as Unreal judges distance-field signs).
+
+use super::sh::{self, Sh9};
+use crate::direct::{punctual_incident, punctual_unoccluded, Lights, Mis};
+use crate::form_factors::raycast::{Landing, Surfaces};
+use crate::sampling::{Net, Stream};
+use glam::{Quat, Vec3};
+
+/// Stream purpose id of probe rays.
+const PURPOSE: u64 = 31;
+
+/// A probe is invalid when more than this fraction of its rays meet back
+/// faces.
+pub const BACKFACE_TOLERANCE: f32 = 0.25;
+
+/// What every probe reads.
+pub struct ProbeLight<'a> {
+    /// The surfaces the rays meet.
+    pub s: &'a Surfaces<'a>,
+    /// Outgoing diffuse radiance per texel: albedo × lightmap value.
+    pub radiance: Vec<Vec3>,
+    /// Per material: emission sampled as a light (else read by the rays).
+    pub sampled: &'a [bool],
+    /// The emitters, punctual lights and sky.
+    pub lights: &'a Lights,
+    /// Rays per probe.
+    pub rays: u32,
+    /// Emitter samples per probe (when there are emitters).
+    pub light_samples: u32,
+    /// The bake's seed.
+    pub seed: u64,
+}
+
+/// One probe's result.
+#[derive(Clone, Copy, Debug)]
+pub struct ProbeSample {
+    /// Radiance SH.
+    pub sh: Sh9,
+    /// False when inside a solid.
+    pub valid: bool,
+    /// Rays cast (sphere, light samples, punctual shadow rays).
+    pub rays: u32,
+}
+
+/// Direction `i` of a spherical Fibonacci set of `n` (Keinert et al. 2015,
+/// "Spherical Fibonacci Mapping"): equal-area bands in z, golden-angle
+/// steps in φ.
+pub fn fibonacci(i: u32, n: u32) -> Vec3 {
+    let golden = 0.618_034_f64; // φ − 1
+    let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * std::f64::consts::PI * (i as f64 * golden).fract();
+    Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32)
+}
+
+/// A uniformly random rotation (Shoemake 1992, "Uniform random rotations").
+fn random_rotation(rng: &mut Stream) -> Quat {
+    let (u1, u2, u3) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+    let tau = 2.0 * std::f32::consts::PI;
+    let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
+    Quat::from_xyzw(
+        a * (tau * u2).sin(),
+        a * (tau * u2).cos(),
+        b * (tau * u3).sin(),
+        b * (tau * u3).cos(),
+    )
+    .normalize()
+}
+
+impl ProbeLight<'_> {
+    /// The light at probe `index`, at world position `p`.
+    pub fn probe(&self, index: usize, p: Vec3) -> ProbeSample {
+        let mut rng = Stream::new(self.seed, PURPOSE, index as u64);
+        let turn = random_rotation(&mut rng);
+        let net = Net::new(&mut rng);
+        let mut sh: Sh9 = [Vec3::ZERO; 9];
+        let n = self.rays.max(1);
+        let m = if self.lights.emitters.is_empty() {
+            0
+        } else {
+            self.light_samples
+        };
+        let mis = Mis {
+            light: m,
+            hemisphere: n,
+        };
+        let w = 4.0 * std::f32::consts::PI / n as f32;
+        let mut back = 0u32;
+        let mut cast = 0u32;
+        for i in 0..n {
+            let d = turn * fibonacci(i, n);
+            cast += 1;
+            let (l, backface) = self.along(p, d, mis);
+            back += backface as u32;
+            sh::add(&mut sh, d, l, w);
+        }
+        for k in 0..m {
+            cast += self.light_sample(p, net.point(k), mis, &mut sh) as u32;
+        }
+        for light in &self.lights.punctual {
+            if let Some((e, to, dist)) = punctual_incident(light, p) {
+                cast += 1;
+                if punctual_unoccluded(self.s.rays, p, to, dist) {
+                    sh::add(&mut sh, to, e, 1.0);
+                }
+            }
+        }
+        ProbeSample {
+            sh,
+            valid: back as f32 <= BACKFACE_TOLERANCE * n as f32,
+            rays: cast,
+        }
+    }
+
+    /// Radiance arriving at `p` from direction `d` (the sphere estimator's
+    /// part: sampled emitters MIS-weighted), and whether a back face was met.
+    fn along(&self, p: Vec3, d: Vec3, mis: Mis) -> (Vec3, bool) {
+        let s = self.s;
+        let g = s.geometry;
+        let (landing, hit) = s.trace(p, d);
+        let Some(hit) = hit else {
+            return (self.lights.sky, false);
+        };
+        if let Landing::BackFace = landing {
+            return (Vec3::ZERO, true);
+        }
+        let tri = hit.tri as usize;
+        let mat = g.material[tri];
+        let mut l = match landing {
+            Landing::Texel(t) => self.radiance[t as usize],
+            _ => Vec3::ZERO,
+        };
+        if g.ng_ws[tri].dot(d) < 0.0 && s.scene.materials[mat as usize].is_emissive() {
+            let le = s.scene.emission_at(mat, g.uv0_at(hit.tri, hit.u, hit.v));
+            if !self.sampled[mat as usize] {
+                l += le;
+            } else if let Some(k) = self.lights.emitter_index(hit.tri) {
+                let p_l = self
+                    .lights
+                    .pdf_solid_angle(g, k, p, p + d * hit.t, g.ng_ws[tri]);
+                let p_b = 1.0 / (4.0 * std::f32::consts::PI);
+                l += le * mis.hemisphere_weight(p_l, p_b);
+            }
+        }
+        (l, false)
+    }
+
+    /// One emitter sample for unit-square point `u`, MIS-weighted, added to
+    /// `sh`. Returns whether a shadow ray was cast.
+    fn light_sample(&self, p: Vec3, u: glam::Vec2, mis: Mis, sh: &mut Sh9) -> bool {
+        let (s, g) = (self.s, self.s.geometry);
+        let Some(e) = self.lights.sample(g, u) else {
+            return false;
+        };
+        let to = e.point - p;
+        let dist = to.length();
+        if dist <= 0.0 {
+            return false;
+        }
+        let d = to / dist;
+        let cos_q = e.normal.dot(-d);
+        if cos_q <= 0.0 {
+            return false;
+        }
+        let p_l = e.pdf_area * dist * dist / cos_q;
+        if !punctual_unoccluded(s.rays, p, d, dist) {
+            return true;
+        }
+        let mat = g.material[e.tri as usize];
+        let le = s.scene.emission_at(mat, g.uv0_at(e.tri, e.u, e.v));
+        let p_b = 1.0 / (4.0 * std::f32::consts::PI);
+        let w_l = 1.0 - mis.hemisphere_weight(p_l, p_b);
+        sh::add(sh, d, le, w_l / (mis.light as f32 * p_l));
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The Fibonacci set's first-band sums vanish (to O(1/N)), which is
+    /// what keeps a uniform field's higher bands at zero.
+    #[test]
+    fn fibonacci_set_is_balanced() {
+        let n = 1024;
+        let mut sum = Vec3::ZERO;
+        let mut yy = [0.0f32; 9];
+        for i in 0..n {
+            let d = fibonacci(i, n);
+            assert!((d.length() - 1.0).abs() < 1e-5);
+            sum += d;
+            for (a, b) in yy.iter_mut().zip(sh::basis(d)) {
+                *a += b;
+            }
+        }
+        assert!(sum.length() / (n as f32) < 1e-3, "{sum}");
+        for (k, v) in yy.iter().enumerate().skip(1) {
+            assert!((v / n as f32).abs() < 2e-3, "band sum {k}: {v}");
+        }
+    }
+
+    #[test]
+    fn rotations_are_rotations() {
+        let mut rng = Stream::new(3, 0, 0);
+        for _ in 0..100 {
+            let q = random_rotation(&mut rng);
+            assert!((q.length() - 1.0).abs() < 1e-5);
+        }
+    }
+}

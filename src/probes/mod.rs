@@ -1,0 +1,181 @@
+//! Stage 7b — light probes for dynamic objects: regular grids of probes
+//! ([`placement`]), each holding the incident radiance over its sphere as L2
+//! spherical harmonics ([`light`], [`sh`]); probes inside solids are found
+//! by back-face votes and filled from their neighbours ([`fill`]).
+//!
+//! The probes read the finished lightmap: a probe ray that meets a surface
+//! sees its outgoing radiance, albedo × lightmap value (+ emission), so the
+//! probes carry every bounce the lightmap does, whatever the transport
+//! method. Direct light from punctual lights, sampled emitters and the sky
+//! is added at the probe itself.
+
+pub mod fill;
+pub mod light;
+pub mod placement;
+pub mod sh;
+
+use crate::config::BakeConfig;
+use crate::direct::{sampled_materials, Lights};
+use crate::form_factors::raycast::Surfaces;
+use glam::Vec3;
+use light::ProbeLight;
+pub use placement::{Volume, VolumeSpec};
+use rayon::prelude::*;
+pub use sh::Sh9;
+
+/// The probes of a bake.
+#[derive(Clone, Debug, Default)]
+pub struct Probes {
+    /// The grids; probe `v.first + i` is probe `i` of grid `v`.
+    pub volumes: Vec<Volume>,
+    /// Radiance SH per probe (invalid ones filled).
+    pub sh: Vec<Sh9>,
+    /// False for a probe found inside a solid (its SH is its neighbours').
+    pub valid: Vec<bool>,
+    /// Factor by which `probe_budget` coarsened the spacing (1: it did not).
+    pub coarsened: f32,
+    /// Invalid probes that no valid neighbour could fill (left black).
+    pub unfilled: usize,
+    /// Rays cast.
+    pub rays: u64,
+}
+
+impl Probes {
+    /// Number of probes.
+    pub fn len(&self) -> usize {
+        self.sh.len()
+    }
+
+    /// True without probes.
+    pub fn is_empty(&self) -> bool {
+        self.sh.is_empty()
+    }
+
+    /// Probes found inside solids.
+    pub fn invalid(&self) -> usize {
+        self.valid.iter().filter(|v| !**v).count()
+    }
+
+    /// World position of probe `i`.
+    pub fn position(&self, i: usize) -> Vec3 {
+        let v = self.volume_of(i);
+        v.position(i - v.first)
+    }
+
+    /// The grid holding probe `i`.
+    pub fn volume_of(&self, i: usize) -> &Volume {
+        let k = self.volumes.partition_point(|v| v.first <= i) - 1;
+        &self.volumes[k]
+    }
+
+    /// Irradiance / π at world point `p` for normal `n`, from the SH of the
+    /// grid holding `p` interpolated trilinearly between the eight probes
+    /// around it (clamped to the outer probes, as Bevy samples); `None`
+    /// outside every grid.
+    pub fn irradiance_over_pi(&self, p: Vec3, n: Vec3) -> Option<Vec3> {
+        let v = self.volumes.iter().find(|v| inside(v, p))?;
+        let r = v.resolution.as_vec3();
+        let local = v.world_from_box.inverse().transform_point3(p);
+        let stp = ((local + 0.5) * r).clamp(Vec3::splat(0.5), r - 0.5) - 0.5;
+        let base = stp.floor();
+        let f = stp - base;
+        let mut out = Vec3::ZERO;
+        for corner in 0..8u32 {
+            let o = glam::UVec3::new(corner & 1, (corner >> 1) & 1, corner >> 2);
+            let c = (base.as_uvec3() + o).min(v.resolution - 1);
+            let w = Vec3::select(o.cmpeq(glam::UVec3::ONE), f, 1.0 - f);
+            let i = v.first + v.index(c);
+            out += sh::irradiance_over_pi(&self.sh[i], n) * (w.x * w.y * w.z);
+        }
+        Some(out)
+    }
+}
+
+fn inside(v: &Volume, p: Vec3) -> bool {
+    let l = v.world_from_box.inverse().transform_point3(p);
+    l.abs().max_element() <= 0.5
+}
+
+/// What the probe stage needs from the bake.
+pub struct Inputs<'a> {
+    /// The surfaces.
+    pub s: &'a Surfaces<'a>,
+    /// The lightmap value (incident irradiance / π) per texel, filled.
+    pub texel_values: &'a [Vec3],
+    /// The boxes the scene places (empty: one box over the scene).
+    pub specs: &'a [VolumeSpec],
+}
+
+/// Bakes the probes (see the module doc). `advance` is called with probes
+/// done.
+pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)) -> Probes {
+    let s = inputs.s;
+    let g = s.geometry;
+    let bounds = g.p_ws.iter().flatten().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let bounds = if bounds.0.is_finite() {
+        bounds
+    } else {
+        (Vec3::ZERO, Vec3::ONE)
+    };
+    let (volumes, coarsened) = placement::place(
+        bounds,
+        inputs.specs,
+        config.probe_spacing,
+        config.probe_budget,
+    );
+    let sampled = sampled_materials(s.scene, g, config.emitters);
+    let lights = Lights::new(s.scene, g, &sampled, Vec3::from(config.sky));
+    let radiance = s
+        .texels
+        .albedo
+        .iter()
+        .zip(inputs.texel_values)
+        .map(|(a, v)| *a * *v)
+        .collect();
+    let pl = ProbeLight {
+        s,
+        radiance,
+        sampled: &sampled,
+        lights: &lights,
+        rays: config.probe_rays,
+        light_samples: config.direct_samples.min(config.probe_rays),
+        seed: config.seed,
+    };
+    let positions: Vec<Vec3> = volumes
+        .iter()
+        .flat_map(|v| (0..v.len()).map(move |i| v.position(i)))
+        .collect();
+    let chunk = 64;
+    let samples: Vec<light::ProbeSample> = positions
+        .par_chunks(chunk)
+        .enumerate()
+        .flat_map_iter(|(c, ps)| {
+            let out: Vec<_> = ps
+                .iter()
+                .enumerate()
+                .map(|(k, p)| pl.probe(c * chunk + k, *p))
+                .collect();
+            advance(out.len() as u64);
+            out
+        })
+        .collect();
+    let mut sh: Vec<Sh9> = samples.iter().map(|x| x.sh).collect();
+    let valid: Vec<bool> = samples.iter().map(|x| x.valid).collect();
+    let rays = samples.iter().map(|x| x.rays as u64).sum();
+    let mut unfilled = 0;
+    for v in &volumes {
+        let range = v.first..v.first + v.len();
+        unfilled += fill::fill(v, &mut sh[range.clone()], &valid[range]);
+    }
+    Probes {
+        volumes,
+        sh,
+        valid,
+        coarsened,
+        unfilled,
+        rays,
+    }
+}
