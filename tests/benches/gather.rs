@@ -48,6 +48,7 @@ fn final_gather(c: &mut Criterion) {
         sky: Vec3::from(bake.config.sky),
         ao_distance: 0.0,
         backface_tolerance: bake.config.backface_tolerance,
+        threshold: 0.0,
     };
     let config = &bake.config;
     let mut group = c.benchmark_group("final_gather_cornell");
