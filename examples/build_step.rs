@@ -30,7 +30,7 @@ fn main() -> anyhow::Result<()> {
     }
     let bake = radbake::bake(&scene, &config, &radbake::Silent)?;
     radbake::output::write_lightmaps(&out, &bake.maps.lightmaps)?;
-    radbake::output::write_engine_outputs(&out, &stem, &scene, &bake.atlas, &bake.maps.lightmaps)?;
+    radbake::output::write_engine_outputs(&out, &stem, &bake)?;
     radbake::output::write_report(&out, &bake.report(&scene_path.display().to_string()))?;
     incremental::record(&out, &hash)?; // last: marks the bake complete
     println!("{}: baked", out.display());

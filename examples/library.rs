@@ -32,7 +32,7 @@ fn main() -> anyhow::Result<()> {
     let stem = scene_path
         .file_stem()
         .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
-    radbake::output::write_engine_outputs(&out, &stem, &scene, &bake.atlas, &bake.maps.lightmaps)?;
+    radbake::output::write_engine_outputs(&out, &stem, &bake)?;
     radbake::output::write_report(&out, &bake.report(&scene_path.display().to_string()))?;
 
     // Per-instance results are plain data.

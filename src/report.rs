@@ -76,6 +76,12 @@ pub struct Counts {
     pub rays_burial: u64,
     /// Rays cast by the final gather.
     pub rays_gather: u64,
+    /// Light probes baked (0 with `probes = false`).
+    pub probes: u64,
+    /// Probes found inside solids (filled from their valid neighbours).
+    pub invalid_probes: u64,
+    /// Rays cast by the probes (sphere rays, emitter samples, shadow rays).
+    pub rays_probes: u64,
     /// Form-factor rays that left the scene.
     pub rays_escaped: u64,
     /// Form-factor rays that hit the back of a one-sided surface.
@@ -195,6 +201,7 @@ impl Report {
             "validity" => c.rays_validity,
             "burial" => c.rays_burial,
             "final_gather" => c.rays_gather,
+            "probes" => c.rays_probes,
             _ => 0,
         }
     }

@@ -338,10 +338,7 @@ fn write_outputs(
     if bake.config.debug_maps {
         written.extend(output::write_debug_maps(&args.out, bake).map_err(lib_err)?);
     }
-    written.extend(
-        output::write_engine_outputs(&args.out, stem, bake.scene, &bake.atlas, lightmaps)
-            .map_err(lib_err)?,
-    );
+    written.extend(output::write_engine_outputs(&args.out, stem, bake).map_err(lib_err)?);
     report.stages.push(StageTime {
         stage: "write".into(),
         seconds: t.elapsed().as_secs_f64(),

@@ -4,13 +4,12 @@
 //! leaves a half-written file where a good one was.
 
 pub mod baked;
+pub mod probes;
 
-use crate::atlas::Atlas;
 use crate::error::{Error, Result};
 use crate::lightmap::Lightmaps;
 use crate::report::Report;
 use crate::scene::texture::linear_to_srgb;
-use crate::scene::Scene;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -297,17 +296,17 @@ pub fn write_report(out_dir: &Path, report: &Report) -> Result<PathBuf> {
 /// [`baked`]), `lightmap_<page>_srgb.png` (value / scale, sRGB-encoded,
 /// the same images the .glb embeds) and `manifest.json` (per instance: the
 /// lightmap files, `uv_rect` in Bevy's convention, the PNG scale and the
-/// `MOZ_lightmap` intensity). Returns the paths written.
+/// `MOZ_lightmap` intensity), and the probes' files ([`probes::write`])
+/// listed in the manifest with their transforms. Returns the paths written.
 ///
 /// # Errors
 /// [`Error::Io`] / [`Error::Encode`].
 pub fn write_engine_outputs(
     out_dir: &Path,
     stem: &str,
-    scene: &Scene,
-    atlas: &Atlas,
-    lightmaps: &Lightmaps,
+    bake: &crate::Bake,
 ) -> Result<Vec<PathBuf>> {
+    let (scene, atlas, lightmaps) = (bake.scene, &bake.atlas, &bake.maps.lightmaps);
     std::fs::create_dir_all(out_dir).map_err(|source| Error::Io {
         path: out_dir.to_path_buf(),
         source,
@@ -349,6 +348,20 @@ pub fn write_engine_outputs(
             })
         })
         .collect();
+    let probes_entry = match &bake.probes {
+        Some(p) => {
+            let (files, json) = probes::write(out_dir, p)?;
+            written.extend(files);
+            serde_json::json!({
+                "json": "probes.json",
+                "binary": "probes.bin",
+                "count": p.len(),
+                "invalid": p.invalid(),
+                "volumes": json["volumes"],
+            })
+        }
+        None => serde_json::Value::Null,
+    };
     let manifest = serde_json::json!({
         "radbake_version": env!("CARGO_PKG_VERSION"),
         "convention": "a texel holds incident irradiance / pi (linear RGB): outgoing radiance = albedo * texel + emission",
@@ -357,6 +370,7 @@ pub fn write_engine_outputs(
         "baked_gltf": if scene.source.is_some() { serde_json::json!(glb_name) } else { serde_json::Value::Null },
         "pages": pages,
         "instances": instances,
+        "probes": probes_entry,
     });
     let path = out_dir.join("manifest.json");
     let text = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::Encode {

@@ -3,8 +3,8 @@
 //! that the next step reads.
 //!
 //! ```text
-//! Scene ─► Atlas ─► Geometry ─► Texels ─► RayCaster ─► Burial ─► Patches ─► TexelLight ─► Maps ─► files
-//! scene    atlas    geometry    texels    raycast      burial    patches    transport     maps     output
+//! Scene ─► Atlas ─► Geometry ─► Texels ─► RayCaster ─► Burial ─► Patches ─► TexelLight ─► Maps ─► Probes ─► files
+//! scene    atlas    geometry    texels    raycast      burial    patches    transport     maps     probes    output
 //! ```
 //!
 //! Light transport ([`transport`]) is one dispatch over
@@ -28,6 +28,7 @@ use crate::error::Result;
 use crate::form_factors::raycast::Surfaces;
 use crate::geometry::Geometry;
 use crate::patches::{self, Patches};
+use crate::probes::{self, Probes};
 use crate::progress::Progress;
 use crate::raycast::RayCaster;
 use crate::report::StageTime;
@@ -58,6 +59,8 @@ pub struct Bake<'s> {
     pub transport: TexelLight,
     /// Lightmap pages (and SH, AO pages), seam counters.
     pub maps: Maps,
+    /// Light probes (`None` with `probes = false`).
+    pub probes: Option<Probes>,
     /// Wall time per stage.
     pub stages: Vec<StageTime>,
     /// Non-fatal problems.
@@ -113,6 +116,22 @@ pub fn bake<'s>(
     let maps = maps::build(&surfaces, atlas.page_count, &light, config);
     log.end("lightmaps");
 
+    let probes = config.probes.then(|| {
+        log.begin("probes", 0);
+        let progress = log.progress();
+        let inputs = probes::Inputs {
+            s: &surfaces,
+            texel_values: &maps.lightmaps.texel_values,
+            specs: &scene.probe_volumes,
+        };
+        let p = probes::bake(&inputs, config, &|n| progress.advance(n));
+        log.end("probes");
+        p
+    });
+    if let Some(p) = &probes {
+        log.warnings.extend(probe_warnings(p));
+    }
+
     Ok(Bake {
         scene,
         config: config.clone(),
@@ -123,6 +142,7 @@ pub fn bake<'s>(
         burial,
         transport: light,
         maps,
+        probes,
         stages: log.stages,
         warnings: log.warnings,
     })
@@ -185,6 +205,26 @@ fn burial_planes(
     );
     log.end("burial");
     burial
+}
+
+/// What the probe stage has to say: a budget that coarsened the spacing,
+/// and invalid probes no valid neighbour could fill.
+fn probe_warnings(p: &Probes) -> Vec<String> {
+    let mut w = Vec::new();
+    if p.coarsened > 1.0 {
+        w.push(format!(
+            "probe_budget: the probe spacing was coarsened {:.2}× to fit {} probes",
+            p.coarsened,
+            p.len()
+        ));
+    }
+    if p.unfilled > 0 {
+        w.push(format!(
+            "probes: {} probes inside solids have no valid neighbour and stay black",
+            p.unfilled
+        ));
+    }
+    w
 }
 
 /// Warnings about the input itself: the importer's, and a scene that

@@ -109,6 +109,7 @@ impl Bake<'_> {
         let ff = patch_light.map(|p| p.stats.clone()).unwrap_or_default();
         let solution = patch_light.map(|p| &p.solution);
         let rays = &self.transport.rays;
+        let probes = self.probes.as_ref();
         Report {
             radbake_version: env!("CARGO_PKG_VERSION").into(),
             scene: scene_path.into(),
@@ -134,7 +135,10 @@ impl Bake<'_> {
                 nonzeros: patch_light
                     .and_then(|p| p.form_factors.as_ref())
                     .map_or(0, |f| f.nnz() as u64),
-                rays: rays.total() + self.burial.stats.rays,
+                rays: rays.total() + self.burial.stats.rays + probes.map_or(0, |p| p.rays),
+                probes: probes.map_or(0, |p| p.len() as u64),
+                invalid_probes: probes.map_or(0, |p| p.invalid() as u64),
+                rays_probes: probes.map_or(0, |p| p.rays),
                 rays_burial: self.burial.stats.rays,
                 clipped_texels: self.burial.stats.clipped,
                 moved_texels: self.burial.stats.moved,
