@@ -80,6 +80,11 @@ fn furnace_volume_reads_two_everywhere() {
         probes.len()
     );
     assert!(worst < 0.02, "worst face {worst}");
+    // probes.json and probes.bin read back as written.
+    let back = radbake::probes::Probes::read(&out.join("probes.json")).unwrap();
+    assert_eq!(back.volumes, probes.volumes);
+    assert_eq!(back.sh, probes.sh);
+    assert_eq!(back.valid, probes.valid);
 }
 
 /// Probe height over the ground square, its half size, albedo, sky, sun.

@@ -207,11 +207,12 @@ fn burial_planes(
     burial
 }
 
-/// What the probe stage has to say: a budget that coarsened the spacing,
-/// and invalid probes no valid neighbour could fill.
+/// What the probe stage has to say: a budget that coarsened the spacing
+/// of the user's `probe_volume` boxes (the automatic box is sized by the
+/// budget by design), and invalid probes no valid neighbour could fill.
 fn probe_warnings(p: &Probes) -> Vec<String> {
     let mut w = Vec::new();
-    if p.coarsened > 1.0 {
+    if p.placed && p.coarsened > 1.0 {
         w.push(format!(
             "probe_budget: the probe spacing was coarsened {:.2}× to fit {} probes",
             p.coarsened,

@@ -34,6 +34,9 @@ pub struct Probes {
     pub valid: Vec<bool>,
     /// Factor by which `probe_budget` coarsened the spacing (1: it did not).
     pub coarsened: f32,
+    /// The grids are the scene's `probe_volume` nodes (not the automatic
+    /// box over the scene).
+    pub placed: bool,
     /// Invalid probes that no valid neighbour could fill (left black).
     pub unfilled: usize,
     /// Rays cast.
@@ -88,6 +91,91 @@ impl Probes {
             out += sh::irradiance_over_pi(&self.sh[i], n) * (w.x * w.y * w.z);
         }
         Some(out)
+    }
+}
+
+impl Probes {
+    /// Reads the probes a bake wrote (`probes.json` and the binary it
+    /// names, see [`crate::output::probes`]).
+    ///
+    /// # Errors
+    /// A one-line message naming the file and the problem.
+    pub fn read(json_path: &std::path::Path) -> anyhow::Result<Probes> {
+        use anyhow::{anyhow, bail, Context as _};
+        let name = json_path.display();
+        let text = std::fs::read(json_path).with_context(|| format!("cannot read {name}"))?;
+        let json: serde_json::Value =
+            serde_json::from_slice(&text).with_context(|| format!("{name}: not JSON"))?;
+        let count = json["probes"]
+            .as_u64()
+            .ok_or_else(|| anyhow!("{name}: no probe count"))? as usize;
+        let bin_name = json["binary"].as_str().unwrap_or("probes.bin");
+        let bin_path = json_path.with_file_name(bin_name);
+        let bin = std::fs::read(&bin_path)
+            .with_context(|| format!("cannot read {}", bin_path.display()))?;
+        if bin.len() != count * 27 * 4 {
+            bail!(
+                "{}: {} bytes, but {name} says {count} probes ({} bytes)",
+                bin_path.display(),
+                bin.len(),
+                count * 108
+            );
+        }
+        let f: Vec<f32> = bin
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        let sh: Vec<Sh9> = f
+            .chunks_exact(27)
+            .map(|c| std::array::from_fn(|k| Vec3::new(c[3 * k], c[3 * k + 1], c[3 * k + 2])))
+            .collect();
+        let mut valid = vec![true; count];
+        for i in json["invalid_probes"].as_array().into_iter().flatten() {
+            match i.as_u64() {
+                Some(i) if (i as usize) < count => valid[i as usize] = false,
+                _ => bail!("{name}: invalid_probes holds {i}, not a probe index"),
+            }
+        }
+        let mut volumes = Vec::new();
+        for (k, v) in json["volumes"].as_array().into_iter().flatten().enumerate() {
+            let bad = || anyhow!("{name}: volumes[{k}] is malformed");
+            let m: Vec<f32> = v["world_from_box"]
+                .as_array()
+                .ok_or_else(bad)?
+                .iter()
+                .map(|x| x.as_f64().map(|x| x as f32))
+                .collect::<Option<_>>()
+                .ok_or_else(bad)?;
+            let r: Vec<u32> = v["resolution"]
+                .as_array()
+                .ok_or_else(bad)?
+                .iter()
+                .map(|x| x.as_u64().map(|x| x as u32))
+                .collect::<Option<_>>()
+                .ok_or_else(bad)?;
+            if m.len() != 16 || r.len() != 3 || r.contains(&0) {
+                return Err(bad());
+            }
+            let vol = Volume {
+                name: v["name"].as_str().unwrap_or("").to_owned(),
+                world_from_box: glam::Mat4::from_cols_slice(&m),
+                resolution: glam::UVec3::new(r[0], r[1], r[2]),
+                first: v["first_probe"].as_u64().ok_or_else(bad)? as usize,
+            };
+            if vol.first + vol.len() > count {
+                bail!("{name}: volumes[{k}] runs past the {count} probes");
+            }
+            volumes.push(vol);
+        }
+        Ok(Probes {
+            volumes,
+            sh,
+            valid,
+            coarsened: 1.0,
+            placed: false,
+            unfilled: json["unfilled_probes"].as_u64().unwrap_or(0) as usize,
+            rays: 0,
+        })
     }
 }
 
@@ -175,6 +263,7 @@ pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)
         sh,
         valid,
         coarsened,
+        placed: !inputs.specs.is_empty(),
         unfilled,
         rays,
     }
