@@ -152,6 +152,22 @@ fn bakes_the_cornell_box_and_writes_outputs() {
         .all(|p| p.iter().all(|v| v.is_finite() && *v >= 0.0)));
     let max = px.iter().fold(0.0f32, |m, p| m.max(p[0]));
     assert!(max > 0.1, "brightest red {max}");
+    // Probes by default, listed in the manifest and counted in the report.
+    assert!(report["counts"]["probes"].as_u64().unwrap() > 0);
+    for f in ["probes.json", "probes.bin", "probes_0.ktx2"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["probes"]["volumes"][0]["bevy_irradiance_volume"], "probes_0.ktx2");
+    // `--probes off` writes none.
+    let off = dir.join("no-probes");
+    let r = bake(&scene_path("cornell_box.gltf"), &off, &["--probes", "off"]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(!off.join("probes.json").exists() && !off.join("probes_0.ktx2").exists());
+    let r = bake(&scene_path("cornell_box.gltf"), &off, &["--probes", "maybe"]);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    assert!(r.stderr.contains("on or off"), "{}", r.stderr);
 }
 
 #[test]
@@ -170,6 +186,11 @@ fn help_documents_flags() {
         "--max-iterations",
         "--uv",
         "--config",
+        "--probes",
+        "--probe-spacing",
+        "--probe-budget",
+        "--probe-rays",
+        "--gather-threshold",
     ] {
         assert!(text.contains(flag), "{flag} not in --help");
     }
@@ -222,7 +243,9 @@ fn stats_prints_stages_rays_and_peak_memory() {
             + c["rays_validity"].as_u64().unwrap()
             + c["rays_gather"].as_u64().unwrap()
             + c["rays_burial"].as_u64().unwrap()
+            + c["rays_probes"].as_u64().unwrap()
     );
+    assert!(r.stderr.contains("probes"), "{}", r.stderr);
     // The validity estimate before the gather: at most 8 rays per texel,
     // fewer for texels found buried early.
     let validity = c["rays_validity"].as_u64().unwrap();

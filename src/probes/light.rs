@@ -12,6 +12,9 @@
 //! - **Emitters** whose emission the direct pass samples are sampled here
 //!   too, by power, and the two estimators are combined by the power
 //!   heuristic with sample counts (Veach 1997 §9.2), as in the direct pass.
+//!   The sky is uniform, so the sphere rays, uniform in solid angle, are
+//!   already its ideal sampling: a second strategy would have the same pdf
+//!   and MIS would weight the two equally.
 //! - **Punctual lights** enter exactly: a delta direction of irradiance E
 //!   projects to E · Yₗₘ(ω_light), shadowed by one ray.
 //! - **Validity**: a probe whose rays meet more than a quarter back faces
