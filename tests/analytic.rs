@@ -327,11 +327,18 @@ fn deterministic_across_thread_counts() {
         pool.install(|| {
             let b = radbake::bake(&scene, &BakeConfig::default(), &Silent).unwrap();
             let probes = b.probes.as_ref().expect("probes on by default");
-            (b.maps.lightmaps.pages.clone(), probes.sh.clone(), probes.valid.clone())
+            (
+                b.maps.lightmaps.pages.clone(),
+                probes.sh.clone(),
+                probes.valid.clone(),
+            )
         })
     };
     let one = run(1);
     let two = run(2);
     assert!(one.0 == two.0, "lightmaps differ between 1 and 2 threads");
-    assert!(one.1 == two.1 && one.2 == two.2, "probes differ between 1 and 2 threads");
+    assert!(
+        one.1 == two.1 && one.2 == two.2,
+        "probes differ between 1 and 2 threads"
+    );
 }

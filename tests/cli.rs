@@ -159,13 +159,20 @@ fn bakes_the_cornell_box_and_writes_outputs() {
     }
     let manifest: Value =
         serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
-    assert_eq!(manifest["probes"]["volumes"][0]["bevy_irradiance_volume"], "probes_0.ktx2");
+    assert_eq!(
+        manifest["probes"]["volumes"][0]["bevy_irradiance_volume"],
+        "probes_0.ktx2"
+    );
     // `--probes off` writes none.
     let off = dir.join("no-probes");
     let r = bake(&scene_path("cornell_box.gltf"), &off, &["--probes", "off"]);
     assert_eq!(r.code, 0, "{}", r.stderr);
     assert!(!off.join("probes.json").exists() && !off.join("probes_0.ktx2").exists());
-    let r = bake(&scene_path("cornell_box.gltf"), &off, &["--probes", "maybe"]);
+    let r = bake(
+        &scene_path("cornell_box.gltf"),
+        &off,
+        &["--probes", "maybe"],
+    );
     assert_eq!(r.code, 2, "{}", r.stderr);
     assert!(r.stderr.contains("on or off"), "{}", r.stderr);
 }

@@ -66,7 +66,11 @@ fn three_js_light_probe_matches_radbake() {
     let bake = radbake::bake(&scene, &config, &Silent).unwrap();
     radbake::output::write_engine_outputs(&out, "cornell", &bake).unwrap();
     let probes = bake.probes.as_ref().unwrap();
-    let picks: Vec<usize> = (0..probes.len()).filter(|&i| probes.valid[i]).step_by(7).take(3).collect();
+    let picks: Vec<usize> = (0..probes.len())
+        .filter(|&i| probes.valid[i])
+        .step_by(7)
+        .take(3)
+        .collect();
     assert_eq!(picks.len(), 3);
     for i in picks {
         let samples = three_sphere(&out, i);
@@ -82,7 +86,13 @@ fn three_js_light_probe_matches_radbake() {
             .zip(&ours)
             .map(|((_, three), ours)| (*three - *ours).abs().max_element())
             .fold(0.0f32, f32::max);
-        eprintln!("probe {i}: {} pixels, worst |three.js − radbake| {worst:.2e} of peak {peak:.4}", samples.len());
-        assert!(worst <= 0.01 * peak, "probe {i}: worst {worst}, peak {peak}");
+        eprintln!(
+            "probe {i}: {} pixels, worst |three.js − radbake| {worst:.2e} of peak {peak:.4}",
+            samples.len()
+        );
+        assert!(
+            worst <= 0.01 * peak,
+            "probe {i}: worst {worst}, peak {peak}"
+        );
     }
 }
