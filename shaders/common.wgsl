@@ -55,6 +55,15 @@ const VIEW_CHECKER: u32 = 3u;
 const VIEW_CHARTS: u32 = 4u;
 const VIEW_PATCHES: u32 = 5u;
 const VIEW_INVALID: u32 = 6u;
+// The lit scene plus a sphere per light probe (the spheres are drawn only
+// in this view; the shading is the default branch's).
+const VIEW_PROBES: u32 = 7u;
+
+// VertexIn.probe.w: lightmapped; lit by probe.rgb (irradiance / π from the
+// bake's probes) in place of the lightmap; an invalid probe's red sphere.
+const PROBE_NONE: f32 = 0.0;
+const PROBE_LIT: f32 = 1.0;
+const PROBE_INVALID: f32 = 2.0;
 
 const FLAG_BASE_TEXTURE: u32 = 1u;
 const FLAG_EMISSIVE_TEXTURE: u32 = 2u;

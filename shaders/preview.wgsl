@@ -1,5 +1,7 @@
 // The preview's one shader: base colour × lightmap + emissive, tone mapped,
-// with the debug views. Prefixed with common.wgsl by the Rust side.
+// with the debug views. Probe-lit vertices (dynamic nodes, probe spheres)
+// carry their light, irradiance / π from the bake's probes computed per
+// vertex on the CPU, in place of the lightmap. Prefixed with common.wgsl by the Rust side.
 
 @group(0) @binding(0) var<uniform> globals: Globals;
 
@@ -22,6 +24,9 @@ struct VertexIn {
     // Bits 0-1: the vertex's corner in its triangle; bits 2-4: which of the
     // triangle's edges (edge k joins corners k and k+1) are chart borders.
     @location(4) corner_edges: u32,
+    // rgb: irradiance / π from the probes (per vertex, clamped at 0);
+    // w: PROBE_NONE (lightmapped), PROBE_LIT or PROBE_INVALID.
+    @location(5) probe: vec4<f32>,
 }
 
 struct VertexOut {
@@ -32,6 +37,7 @@ struct VertexOut {
     @location(3) uv1: vec2<f32>,
     @location(4) bary: vec3<f32>,
     @location(5) @interpolate(flat) edges: u32,
+    @location(6) probe: vec4<f32>,
 }
 
 @vertex
@@ -45,6 +51,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
     let corner = v.corner_edges & 3u;
     out.bary = vec3<f32>(f32(corner == 0u), f32(corner == 1u), f32(corner == 2u));
     out.edges = v.corner_edges >> 2u;
+    out.probe = v.probe;
     return out;
 }
 
@@ -84,11 +91,24 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         emissive = emissive * textureSampleLevel(emissive_texture, emissive_sampler, uv, 0.0).rgb;
     }
     let atlas_uv = material.lightmap_rect.xy + in.uv1 * material.lightmap_rect.zw;
+    // The light: the lightmap's irradiance / π, or the probes' for
+    // probe-lit vertices (their material may be lightmapped elsewhere, but
+    // their TEXCOORD_1 means nothing).
+    let probe_lit = in.probe.w > 0.5 * (PROBE_NONE + PROBE_LIT);
+    let has_lightmap = (material.flags & FLAG_LIGHTMAP) != 0u && !probe_lit;
     var lightmap = vec3<f32>(0.0);
-    if (material.flags & FLAG_LIGHTMAP) != 0u {
+    if has_lightmap {
         lightmap = lightmap_at(atlas_uv);
     }
-    let lit = base.rgb * lightmap + emissive;
+    if probe_lit {
+        lightmap = in.probe.rgb;
+    }
+    var lit = base.rgb * lightmap + emissive;
+    // An invalid probe's sphere: plain red radiance.
+    if in.probe.w > 0.5 * (PROBE_LIT + PROBE_INVALID) {
+        lightmap = vec3<f32>(1.0, 0.0, 0.0);
+        lit = lightmap;
+    }
 
     var color: vec3<f32>;
     switch globals.view_mode {
@@ -101,7 +121,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
         case VIEW_CHECKER: {
             // One checker square per lightmap texel; surfaces without a
             // lightmap are magenta.
-            if (material.flags & FLAG_LIGHTMAP) != 0u {
+            if has_lightmap {
                 let size = vec2<f32>(textureDimensions(lightmap_texture, 0));
                 let t = vec2<i32>(floor(atlas_uv * size));
                 let odd = ((t.x + t.y) & 1) != 0;
@@ -126,7 +146,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             }
         }
         case VIEW_PATCHES: {
-            let d = debug_at(atlas_uv);
+            let d = select(debug_at(atlas_uv), vec4<f32>(0.0), probe_lit);
             let shade = tone_map(lit, globals.exposure, globals.tone_map);
             if d.a > 0.0 {
                 color = mix(d.rgb, shade, 0.3);
@@ -136,7 +156,7 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             }
         }
         case VIEW_INVALID: {
-            let d = debug_at(atlas_uv);
+            let d = select(debug_at(atlas_uv), vec4<f32>(0.0), probe_lit);
             color = tone_map(lit, globals.exposure, globals.tone_map) * 0.8;
             if d.a > 0.25 && d.a < 0.75 {
                 color = vec3<f32>(1.0, 0.05, 0.0);

@@ -26,7 +26,7 @@ pub struct PreviewArgs {
     /// Window: after --frames frames, save the last view here (PNG) and exit.
     #[arg(long, requires = "frames", conflicts_with = "headless")]
     pub screenshot: Option<PathBuf>,
-    /// First debug view.
+    /// First debug view (keys 1–8 switch views in the window).
     #[arg(long, value_enum, default_value = "lit")]
     pub view: radbake::preview::ViewMode,
     /// Bicubic (B-spline) lightmap filtering instead of bilinear.

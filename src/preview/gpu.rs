@@ -85,12 +85,25 @@ pub struct Vertex {
     /// Bits 0–1: corner (0, 1, 2); bits 2–4: edges of the triangle on a
     /// chart border (edge k joins corners k and k + 1).
     pub corner_edges: u32,
+    /// Probe light: rgb = irradiance / π from the bake's probes at this
+    /// vertex (computed on the CPU, clamped at 0), w = [`PROBE_NONE`],
+    /// [`PROBE_LIT`] or [`PROBE_INVALID`].
+    pub probe: [f32; 4],
 }
+
+/// [`Vertex::probe`] w: lightmapped geometry (the probe rgb is unused).
+pub const PROBE_NONE: f32 = 0.0;
+/// [`Vertex::probe`] w: lit by the probe rgb in place of the lightmap (a
+/// dynamic node, or a valid probe's sphere).
+pub const PROBE_LIT: f32 = 1.0;
+/// [`Vertex::probe`] w: the sphere of an invalid probe, drawn red.
+pub const PROBE_INVALID: f32 = 2.0;
 
 impl Vertex {
     /// The vertex buffer layout matching `VertexIn` in `shaders/preview.wgsl`.
-    pub const ATTRIBUTES: [wgpu::VertexAttribute; 5] = wgpu::vertex_attr_array![
-        0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x2, 4 => Uint32
+    pub const ATTRIBUTES: [wgpu::VertexAttribute; 6] = wgpu::vertex_attr_array![
+        0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x2, 4 => Uint32,
+        5 => Float32x4
     ];
 
     /// The vertex buffer layout.
@@ -145,7 +158,7 @@ pub fn layouts() -> Vec<Layout> {
 }
 
 /// `Vertex` field offsets in attribute (shader location) order.
-pub fn vertex_offsets() -> [usize; 5] {
+pub fn vertex_offsets() -> [usize; 6] {
     use std::mem::offset_of;
     [
         offset_of!(Vertex, position),
@@ -153,5 +166,6 @@ pub fn vertex_offsets() -> [usize; 5] {
         offset_of!(Vertex, uv0),
         offset_of!(Vertex, uv1),
         offset_of!(Vertex, corner_edges),
+        offset_of!(Vertex, probe),
     ]
 }

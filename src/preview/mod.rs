@@ -1,7 +1,10 @@
 //! `radbake preview`: a wgpu viewer for baked scenes (feature `preview`).
 //!
 //! - [`model`] turns a baked `.glb` into world-space triangles, materials
-//!   and lightmap pages (lightmaps come from the `.glb`'s `MOZ_lightmap`).
+//!   and lightmap pages (lightmaps come from the `.glb`'s `MOZ_lightmap`),
+//!   and reads the light probes beside it (`probes.json`, `probes.bin`).
+//! - [`probe_light`] lights dynamic nodes from the probes and builds the
+//!   probes view's spheres.
 //! - [`renderer`] holds the GPU resources and the one render path,
 //!   [`renderer::Renderer::render`], used by the window and `--headless`.
 //! - [`camera`] has the orbit and fly cameras, [`window`] the winit loop.
@@ -9,13 +12,22 @@
 //!
 //! Shading: outgoing radiance = base colour × lightmap + emissive (the
 //! lightmap holds irradiance / π), times 2^EV, tone mapped (ACES fitted),
-//! written to an sRGB target.
+//! written to an sRGB target. Dynamic nodes (glTF
+//! `extras.radbake.dynamic`, not baked) take the probes' irradiance / π in
+//! place of the lightmap: trilinear between the eight probes around each
+//! vertex (L2 SH, Ramamoorthi & Hanrahan 2001), evaluated on the CPU **per
+//! vertex** and interpolated across triangles; without probes beside the
+//! `.glb` they are drawn unlit (black but for emission), with a warning.
+//! The probes view adds a white sphere per probe shaded by that probe's
+//! irradiance / π for the sphere's normal (also per vertex), red where the
+//! probe was found inside a solid.
 
 pub mod camera;
 pub mod gpu;
 pub mod headless;
 pub mod model;
 pub mod options;
+pub mod probe_light;
 pub mod renderer;
 pub mod window;
 
@@ -37,6 +49,18 @@ pub fn run(opts: &Options) -> Result<()> {
     let model = Model::load(&opts.scene)?;
     for warning in &model.scene.warnings {
         eprintln!("warning: {warning}");
+    }
+    let dynamic = model.scene.dynamic.len();
+    if model.probes.is_none() && (dynamic > 0 || opts.settings.view == ViewMode::Probes) {
+        let consequence = if dynamic > 0 {
+            format!("{dynamic} dynamic node(s) are drawn unlit (black)")
+        } else {
+            "the probes view has nothing to show".to_owned()
+        };
+        eprintln!(
+            "warning: light probes not found ({} does not exist): {consequence}",
+            model::probes_path(&opts.scene).display()
+        );
     }
     if model.lightmaps.is_empty() {
         eprintln!(
@@ -61,7 +85,7 @@ pub fn run(opts: &Options) -> Result<()> {
                 opts.frames.unwrap_or(1),
                 1e3 / ms,
                 result.adapter,
-                model.vertices.len() / 3
+                model.triangles()
             );
         }
         eprintln!("wrote {}", out.display());

@@ -1,6 +1,6 @@
 //! What the preview draws, built on the CPU from a baked `.glb`: world-space
-//! triangles grouped by material, the materials' GPU parameters, and the
-//! lightmap pages.
+//! triangles grouped by material, the materials' GPU parameters, the
+//! lightmap pages, and the bake's light probes with a sphere per probe.
 //!
 //! **How lightmaps are loaded.** Only the `.glb` is read (no `manifest.json`
 //! or EXR is needed, so a baked `.glb` can be previewed anywhere):
@@ -11,12 +11,24 @@
 //! `KHR_texture_transform` the instance's atlas rectangle (atlas UV =
 //! offset + scale × `TEXCOORD_1`), and its `intensity` k gives the linear
 //! value `srgb_to_linear(png) × k / π` (incident irradiance / π).
+//!
+//! **How probes are loaded.** `probes.json` (and the `probes.bin` it names)
+//! in the `.glb`'s folder, read by [`Probes::read`]; none there is not an
+//! error (the preview warns where it matters), a malformed one is.
+//! Instances (`Scene::instances`) are lightmapped; dynamic nodes
+//! (`Scene::dynamic`, glTF `extras.radbake.dynamic`) have no lightmap and
+//! carry, per vertex, irradiance / π interpolated from the probes at the
+//! vertex's world position and normal ([`probe_light::vertex_light`],
+//! evaluated per vertex, not per pixel), or black without probes.
 
 use super::gpu::{self, Vertex};
+use super::probe_light;
+use crate::probes::Probes;
 use crate::scene::{Alpha, Scene, TextureRef};
 use anyhow::{anyhow, Context as _, Result};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 /// A material's `MOZ_lightmap`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -70,19 +82,27 @@ pub struct PreviewMaterial {
 pub struct Model {
     /// The imported scene (textures, cameras).
     pub scene: Scene,
-    /// Non-indexed world-space triangles, sorted by material.
+    /// Non-indexed world-space triangles of the instances (lightmapped) and
+    /// the dynamic nodes (probe-lit), sorted by material.
     pub vertices: Vec<Vertex>,
     /// Draw ranges, one per material used.
     pub batches: Vec<Batch>,
-    /// Materials, parallel to [`Scene::materials`].
+    /// Materials, parallel to [`Scene::materials`], then (with probes) the
+    /// probe spheres' white one.
     pub materials: Vec<PreviewMaterial>,
     /// Lightmap pages (sRGB RGBA8).
     pub lightmaps: Vec<Image>,
     /// Per page, the bake's `lightmap_<page>_debug.png` beside the `.glb`
     /// when it was written (`radbake bake --debug-maps`).
     pub debug_maps: Vec<Option<Image>>,
-    /// World bounds of all vertices (min, max).
+    /// World bounds of all vertices (min, max; the probe spheres not included).
     pub bounds: (Vec3, Vec3),
+    /// The bake's light probes (`probes.json` beside the `.glb`), if found.
+    pub probes: Option<Probes>,
+    /// With probes: the index in [`Model::materials`] of the probe spheres'
+    /// material (the spheres themselves, [`probe_light::spheres`], are
+    /// built by the renderer the first time the probes view is shown).
+    pub probe_material: Option<usize>,
 }
 
 /// `MOZ_lightmap` of every glTF material (None where absent), and the glTF
@@ -210,10 +230,134 @@ pub fn chart_border_edges(positions: &[Vec3], uv1: &[Vec2], triangles: &[[u32; 3
         .collect()
 }
 
+/// A material's preview parameters; `lm` is its `MOZ_lightmap`, if any.
+fn preview_material(m: &crate::scene::Material, lm: Option<LightmapRef>) -> PreviewMaterial {
+    let (base_uv0, base_uv1) = uv_rows(m.albedo_texture.as_ref());
+    let (emissive_uv0, emissive_uv1) = uv_rows(m.emission_texture.as_ref());
+    let mut flags = 0;
+    if m.albedo_texture.is_some() {
+        flags |= gpu::FLAG_BASE_TEXTURE;
+    }
+    if m.emission_texture.is_some() {
+        flags |= gpu::FLAG_EMISSIVE_TEXTURE;
+    }
+    if lm.is_some() {
+        flags |= gpu::FLAG_LIGHTMAP;
+    }
+    let lm_rect = lm.map_or([0.0, 0.0, 1.0, 1.0], |l| {
+        [l.offset.x, l.offset.y, l.scale.x, l.scale.y]
+    });
+    PreviewMaterial {
+        gpu: gpu::Material {
+            base_color: [m.albedo.x, m.albedo.y, m.albedo.z, m.alpha_factor],
+            emissive: [m.emission.x, m.emission.y, m.emission.z, 0.0],
+            base_uv0,
+            base_uv1,
+            emissive_uv0,
+            emissive_uv1,
+            lightmap_rect: lm_rect,
+            lightmap_scale: lm.map_or(0.0, |l| l.intensity / std::f32::consts::PI),
+            flags,
+            alpha_cutoff: match m.alpha {
+                Alpha::Opaque => -1.0,
+                Alpha::Mask { cutoff } => cutoff,
+            },
+            _pad: 0.0,
+        },
+        base_texture: m.albedo_texture.as_ref().map(|t| t.texture),
+        emissive_texture: m.emission_texture.as_ref().map(|t| t.texture),
+        lightmap: lm.map(|l| l.page),
+        double_sided: m.double_sided,
+    }
+}
+
+/// The probe spheres' material: white, opaque, no texture, no lightmap.
+fn sphere_material() -> PreviewMaterial {
+    let (uv0, uv1) = uv_rows(None);
+    PreviewMaterial {
+        gpu: gpu::Material {
+            base_color: [1.0; 4],
+            emissive: [0.0; 4],
+            base_uv0: uv0,
+            base_uv1: uv1,
+            emissive_uv0: uv0,
+            emissive_uv1: uv1,
+            lightmap_rect: [0.0, 0.0, 1.0, 1.0],
+            lightmap_scale: 0.0,
+            flags: 0,
+            alpha_cutoff: -1.0,
+            _pad: 0.0,
+        },
+        base_texture: None,
+        emissive_texture: None,
+        lightmap: None,
+        double_sided: false,
+    }
+}
+
+/// How an instance's vertices are lit.
+#[derive(Clone, Copy)]
+enum Light<'a> {
+    /// By its materials' lightmaps (chart borders per source triangle).
+    Lightmap(&'a [u8]),
+    /// By the probes, evaluated per vertex (a dynamic node; black without probes).
+    Probes(Option<&'a Probes>),
+}
+
+/// Appends `inst`'s triangles, in world space, to `per_material`.
+fn push_instance(
+    per_material: &mut [Vec<Vertex>],
+    scene: &Scene,
+    inst: &crate::scene::Instance,
+    light: Light,
+) {
+    let mesh = &scene.meshes[inst.mesh as usize];
+    let m = inst.world_from_local;
+    let nm = inst.normal_matrix();
+    let corners = if inst.mirrors() { [0, 2, 1] } else { [0, 1, 2] };
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let mat = mesh.triangle_material[t] as usize;
+        let edges = match light {
+            Light::Lightmap(borders) => borders[t] as u32,
+            Light::Probes(_) => 0,
+        };
+        // The corner index stays the source triangle's, so the edge mask
+        // holds whatever the drawing order.
+        for c in corners {
+            let v = tri[c] as usize;
+            let p = m.transform_point3(mesh.positions[v]);
+            let n = (nm * mesh.normals[v]).normalize_or_zero();
+            per_material[mat].push(Vertex {
+                position: p.to_array(),
+                normal: n.to_array(),
+                uv0: mesh.uv0[v].to_array(),
+                uv1: mesh.uv1.as_ref().map_or([0.0; 2], |u| u[v].to_array()),
+                corner_edges: c as u32 | (edges << 2),
+                probe: match light {
+                    Light::Lightmap(_) => [0.0, 0.0, 0.0, gpu::PROBE_NONE],
+                    Light::Probes(probes) => probe_light::vertex_light(probes, p, n),
+                },
+            });
+        }
+    }
+}
+
+/// Where `Model::load` looks for a baked `.glb`'s probes: `probes.json` in
+/// its folder.
+pub fn probes_path(glb: &Path) -> PathBuf {
+    glb.with_file_name("probes.json")
+}
+
 impl Model {
     /// Loads a baked `.glb` (or any glTF; surfaces without `MOZ_lightmap`
-    /// get no lightmap).
-    pub fn load(path: &std::path::Path) -> Result<Model> {
+    /// get no lightmap), and the probes beside it (`probes.json`, see
+    /// [`probes_path`]) when there are any.
+    ///
+    /// # Errors
+    /// The scene cannot be imported, a lightmap page cannot be decoded, or
+    /// `probes.json` exists but cannot be read (a one-line message naming
+    /// the file).
+    pub fn load(path: &Path) -> Result<Model> {
         let scene = crate::scene::load(path, &Default::default())
             .with_context(|| format!("cannot load {}", path.display()))?;
         let (moz, pages) = match &scene.source {
@@ -238,64 +382,37 @@ impl Model {
                 })
             })
             .collect();
-        let mut model = Self::build(scene, &moz, lightmaps);
+        let probes_json = probes_path(path);
+        let probes = if probes_json.exists() {
+            Some(Probes::read(&probes_json)?)
+        } else {
+            None
+        };
+        let mut model = Self::build(scene, &moz, lightmaps, probes);
         model.debug_maps = debug_maps;
         Ok(model)
     }
 
-    /// Builds the model from an imported scene and its materials' lightmaps
-    /// (`moz[m]` for glTF material m).
-    pub fn build(scene: Scene, moz: &[Option<LightmapRef>], lightmaps: Vec<Image>) -> Model {
-        let materials: Vec<PreviewMaterial> = scene
+    /// Builds the model from an imported scene, its materials' lightmaps
+    /// (`moz[m]` for glTF material m) and the bake's probes: the instances
+    /// are lightmapped, the dynamic nodes lit by the probes per vertex
+    /// ([`probe_light::vertex_light`]), and with probes the spheres' white
+    /// material is added.
+    pub fn build(
+        scene: Scene,
+        moz: &[Option<LightmapRef>],
+        lightmaps: Vec<Image>,
+        probes: Option<Probes>,
+    ) -> Model {
+        let mut materials: Vec<PreviewMaterial> = scene
             .materials
             .iter()
             .enumerate()
             .map(|(i, m)| {
-                let lm = moz
-                    .get(i)
-                    .copied()
-                    .flatten()
-                    .filter(|l| l.page < lightmaps.len());
-                let (base_uv0, base_uv1) = uv_rows(m.albedo_texture.as_ref());
-                let (emissive_uv0, emissive_uv1) = uv_rows(m.emission_texture.as_ref());
-                let mut flags = 0;
-                if m.albedo_texture.is_some() {
-                    flags |= gpu::FLAG_BASE_TEXTURE;
-                }
-                if m.emission_texture.is_some() {
-                    flags |= gpu::FLAG_EMISSIVE_TEXTURE;
-                }
-                if lm.is_some() {
-                    flags |= gpu::FLAG_LIGHTMAP;
-                }
-                let lm_rect = lm.map_or([0.0, 0.0, 1.0, 1.0], |l| {
-                    [l.offset.x, l.offset.y, l.scale.x, l.scale.y]
-                });
-                PreviewMaterial {
-                    gpu: gpu::Material {
-                        base_color: [m.albedo.x, m.albedo.y, m.albedo.z, m.alpha_factor],
-                        emissive: [m.emission.x, m.emission.y, m.emission.z, 0.0],
-                        base_uv0,
-                        base_uv1,
-                        emissive_uv0,
-                        emissive_uv1,
-                        lightmap_rect: lm_rect,
-                        lightmap_scale: lm.map_or(0.0, |l| l.intensity / std::f32::consts::PI),
-                        flags,
-                        alpha_cutoff: match m.alpha {
-                            Alpha::Opaque => -1.0,
-                            Alpha::Mask { cutoff } => cutoff,
-                        },
-                        _pad: 0.0,
-                    },
-                    base_texture: m.albedo_texture.as_ref().map(|t| t.texture),
-                    emissive_texture: m.emission_texture.as_ref().map(|t| t.texture),
-                    lightmap: lm.map(|l| l.page),
-                    double_sided: m.double_sided,
-                }
+                let lm = moz.get(i).copied().flatten();
+                preview_material(m, lm.filter(|l| l.page < lightmaps.len()))
             })
             .collect();
-
         // Chart borders once per mesh.
         let borders: Vec<Vec<u8>> = scene
             .meshes
@@ -307,37 +424,17 @@ impl Model {
             .collect();
         // Triangles per material, then concatenated.
         let mut per_material: Vec<Vec<Vertex>> = vec![Vec::new(); materials.len()];
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for inst in &scene.instances {
-            let mesh = &scene.meshes[inst.mesh as usize];
-            let m = inst.world_from_local;
-            let nm = inst.normal_matrix();
-            let mirrored = inst.mirrors();
-            for (t, tri) in mesh.triangles.iter().enumerate() {
-                let mat = mesh.triangle_material[t] as usize;
-                let edges = borders[inst.mesh as usize][t] as u32;
-                let mut corners = [0usize, 1, 2];
-                if mirrored {
-                    corners = [0, 2, 1];
-                }
-                // The corner index stays the source triangle's, so the edge
-                // mask holds whatever the drawing order.
-                for &c in &corners {
-                    let v = tri[c] as usize;
-                    let p = m.transform_point3(mesh.positions[v]);
-                    lo = lo.min(p);
-                    hi = hi.max(p);
-                    let n = (nm * mesh.normals[v]).normalize_or_zero();
-                    per_material[mat].push(Vertex {
-                        position: p.to_array(),
-                        normal: n.to_array(),
-                        uv0: mesh.uv0[v].to_array(),
-                        uv1: mesh.uv1.as_ref().map_or([0.0; 2], |u| u[v].to_array()),
-                        corner_edges: c as u32 | (edges << 2),
-                    });
-                }
-            }
+            let light = Light::Lightmap(&borders[inst.mesh as usize]);
+            push_instance(&mut per_material, &scene, inst, light);
+        }
+        for inst in &scene.dynamic {
+            push_instance(
+                &mut per_material,
+                &scene,
+                inst,
+                Light::Probes(probes.as_ref()),
+            );
         }
         let mut vertices = Vec::new();
         let mut batches = Vec::new();
@@ -352,18 +449,33 @@ impl Model {
                 vertices: start..vertices.len() as u32,
             });
         }
-        if vertices.is_empty() {
-            lo = Vec3::splat(-1.0);
-            hi = Vec3::splat(1.0);
-        }
+        let bounds = if vertices.is_empty() {
+            (Vec3::splat(-1.0), Vec3::splat(1.0))
+        } else {
+            vertices.iter().fold(
+                (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+                |(lo, hi), v| (lo.min(v.position.into()), hi.max(v.position.into())),
+            )
+        };
+        let probe_material = probes.as_ref().map(|_| {
+            materials.push(sphere_material());
+            materials.len() - 1
+        });
         Model {
             scene,
             vertices,
             batches,
             materials,
             lightmaps,
-            bounds: (lo, hi),
+            bounds,
             debug_maps: Vec::new(),
+            probes,
+            probe_material,
         }
+    }
+
+    /// Triangles of the scene (the probe spheres not counted).
+    pub fn triangles(&self) -> usize {
+        self.vertices.len() / 3
     }
 }

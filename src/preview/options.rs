@@ -11,9 +11,11 @@ use std::path::PathBuf;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 #[repr(u32)]
 pub enum ViewMode {
-    /// Base colour × lightmap + emissive, tone mapped.
+    /// Base colour × lightmap + emissive, tone mapped (dynamic nodes: base
+    /// colour × the probes' irradiance / π + emissive).
     Lit = 0,
-    /// The lightmap alone (irradiance / π), tone mapped.
+    /// The lightmap alone (irradiance / π; the probes' on dynamic nodes),
+    /// tone mapped.
     Lightmap = 1,
     /// Base colour alone (no lighting, no tone map).
     Albedo = 2,
@@ -26,11 +28,16 @@ pub enum ViewMode {
     /// Texels found inside or under geometry (filled from neighbours) in
     /// red over the lit scene (needs `bake --debug-maps`).
     Invalid = 6,
+    /// The lit scene plus a sphere at each light probe, shaded by the
+    /// probe's irradiance / π for the sphere's normal (white albedo);
+    /// probes found inside solids are red (needs `probes.json` beside the
+    /// `.glb`).
+    Probes = 7,
 }
 
 impl ViewMode {
-    /// All views, in key order (1–7).
-    pub const ALL: [ViewMode; 7] = [
+    /// All views, in key order (1–8).
+    pub const ALL: [ViewMode; 8] = [
         ViewMode::Lit,
         ViewMode::Lightmap,
         ViewMode::Albedo,
@@ -38,6 +45,7 @@ impl ViewMode {
         ViewMode::Charts,
         ViewMode::Patches,
         ViewMode::Invalid,
+        ViewMode::Probes,
     ];
 
     /// Short name.
@@ -50,6 +58,7 @@ impl ViewMode {
             ViewMode::Charts => "chart borders",
             ViewMode::Patches => "patches",
             ViewMode::Invalid => "invalid texels",
+            ViewMode::Probes => "light probes",
         }
     }
 }

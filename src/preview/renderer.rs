@@ -5,7 +5,9 @@
 use super::camera::Camera;
 use super::gpu::{self, Globals, Vertex};
 use super::model::Model;
-use super::options::Settings;
+use super::options::{Settings, ViewMode};
+use super::probe_light;
+use crate::probes::Probes;
 use crate::scene::Wrap;
 use wgpu::util::DeviceExt as _;
 
@@ -15,6 +17,46 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 struct DrawBatch {
     vertices: std::ops::Range<u32>,
     material: usize,
+}
+
+/// The probe spheres on the GPU (indexed; drawn in the probes view only).
+struct Spheres {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    count: u32,
+    material: usize,
+}
+
+impl Spheres {
+    /// Builds and uploads a sphere per probe ([`probe_light::spheres`]);
+    /// None without any.
+    fn upload(device: &wgpu::Device, probes: &Probes, material: usize) -> Option<Spheres> {
+        let s = probe_light::spheres(probes);
+        if s.indices.is_empty() {
+            return None;
+        }
+        let buffer = |label, contents, usage| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+        };
+        Some(Spheres {
+            vertices: buffer(
+                "probe sphere vertices",
+                bytemuck::cast_slice(&s.vertices),
+                wgpu::BufferUsages::VERTEX,
+            ),
+            indices: buffer(
+                "probe sphere indices",
+                bytemuck::cast_slice(&s.indices),
+                wgpu::BufferUsages::INDEX,
+            ),
+            count: s.indices.len() as u32,
+            material,
+        })
+    }
 }
 
 /// GPU resources of a loaded model and the pipeline that draws it.
@@ -28,6 +70,10 @@ pub struct Renderer {
     globals_group: wgpu::BindGroup,
     vertices: Option<wgpu::Buffer>,
     batches: Vec<DrawBatch>,
+    /// The probes and their spheres' material, until the spheres are built
+    /// (the first frame of the probes view: a few MB per thousand probes).
+    probes: Option<(Probes, usize)>,
+    spheres: Option<Spheres>,
     material_groups: Vec<wgpu::BindGroup>,
     double_sided: Vec<bool>,
     depth: Option<(wgpu::TextureView, u32, u32)>,
@@ -166,6 +212,8 @@ impl Renderer {
                     material: b.material,
                 })
                 .collect(),
+            probes: model.probes.clone().zip(model.probe_material),
+            spheres: None,
             material_groups,
             double_sided: model.materials.iter().map(|m| m.double_sided).collect(),
             depth: None,
@@ -214,6 +262,12 @@ impl Renderer {
     pub fn render(&mut self, target: &wgpu::TextureView) -> wgpu::SubmissionIndex {
         let (w, h) = self.size;
         let s = &self.settings;
+        let view = s.view;
+        if view == ViewMode::Probes && self.spheres.is_none() {
+            if let Some((probes, material)) = self.probes.take() {
+                self.spheres = Spheres::upload(&self.device, &probes, material);
+            }
+        }
         let globals = Globals {
             view_proj: self
                 .camera
@@ -264,15 +318,22 @@ impl Renderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
+            pass.set_bind_group(0, &self.globals_group, &[]);
             if let Some(vertices) = &self.vertices {
                 pass.set_vertex_buffer(0, vertices.slice(..));
-                pass.set_bind_group(0, &self.globals_group, &[]);
                 for b in &self.batches {
                     let pipeline = &self.pipelines[self.double_sided[b.material] as usize];
                     pass.set_pipeline(pipeline);
                     pass.set_bind_group(1, &self.material_groups[b.material], &[]);
                     pass.draw(b.vertices.clone(), 0..1);
                 }
+            }
+            if let Some(sp) = self.spheres.as_ref().filter(|_| view == ViewMode::Probes) {
+                pass.set_pipeline(&self.pipelines[0]);
+                pass.set_bind_group(1, &self.material_groups[sp.material], &[]);
+                pass.set_vertex_buffer(0, sp.vertices.slice(..));
+                pass.set_index_buffer(sp.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..sp.count, 0, 0..1);
             }
         }
         self.queue.submit([encoder.finish()])

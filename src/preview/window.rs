@@ -22,7 +22,7 @@ use winit::window::{Window, WindowId};
 pub const HELP: &str = "\
 mouse: left drag orbit/look, right or middle drag pan, wheel zoom
 Tab: orbit <-> fly camera    W A S D: move (fly), Q/E: down/up, Shift: faster
-1 lit  2 lightmap  3 albedo  4 texel checker  5 chart borders  6 patches  7 invalid texels
+1 lit  2 lightmap  3 albedo  4 texel checker  5 chart borders  6 patches  7 invalid texels  8 probes
 B: bilinear/bicubic lightmap   T: tone map ACES/none   +/-: exposure   0: exposure 0
 F: reset camera   P: screenshot (preview_<n>.png)   H: help   Esc: quit";
 
@@ -156,7 +156,8 @@ impl App {
             | KeyCode::Digit4
             | KeyCode::Digit5
             | KeyCode::Digit6
-            | KeyCode::Digit7 => {
+            | KeyCode::Digit7
+            | KeyCode::Digit8 => {
                 let i = [
                     KeyCode::Digit1,
                     KeyCode::Digit2,
@@ -165,6 +166,7 @@ impl App {
                     KeyCode::Digit5,
                     KeyCode::Digit6,
                     KeyCode::Digit7,
+                    KeyCode::Digit8,
                 ]
                 .iter()
                 .position(|&k| k == code)
