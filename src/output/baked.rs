@@ -3,7 +3,8 @@
 //! - Every baked primitive gets `TEXCOORD_1` (its vertices split at chart
 //!   seams: each output vertex copies all attributes, morph targets
 //!   included, of the input vertex it came from) and new indices.
-//! - Lightmap pages are embedded as PNG textures (see [`encode_png`]).
+//! - Lightmap pages are embedded as PNG textures (see [`super::png8`]: one
+//!   scale per instance, carried by its `MOZ_lightmap.intensity`).
 //! - Each material that is lightmapped references its page through the
 //!   `MOZ_lightmap` extension (`index`, `texCoord: 1`, `intensity`), whose
 //!   `KHR_texture_transform` maps the instance's `[0, 1]` UVs to its atlas
@@ -15,34 +16,10 @@
 
 use crate::atlas::Atlas;
 use crate::error::{Error, Result};
-use crate::lightmap::Lightmaps;
-use crate::scene::texture::linear_to_srgb;
+use super::png8::EncodedPage;
 use crate::scene::Scene;
 use serde_json::{json, Value};
 use std::collections::HashMap;
-
-/// A lightmap page as an 8-bit sRGB PNG of value / scale, and the scale
-/// (the page's largest value). Decoding: value = srgb_to_linear(png) × scale.
-pub fn encode_png(lightmaps: &Lightmaps, page: usize) -> (Vec<u8>, f32) {
-    let values = &lightmaps.pages[page];
-    let scale = values
-        .iter()
-        .map(|v| v.max_element())
-        .fold(0.0f32, f32::max)
-        .max(1e-8);
-    let img = image::RgbImage::from_fn(lightmaps.width, lightmaps.height, |x, y| {
-        let v = values[(y * lightmaps.width + x) as usize] / scale;
-        let c = |c: f32| (linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
-        image::Rgb([c(v.x), c(v.y), c(v.z)])
-    });
-    let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .expect("PNG encoding to memory cannot fail");
-    (bytes, scale)
-}
 
 /// Bytes per component of a glTF `componentType`.
 fn component_size(ct: u64) -> Option<usize> {
@@ -152,7 +129,7 @@ fn accessor_elements(
 pub fn baked_glb(
     scene: &Scene,
     atlas: &Atlas,
-    lightmaps: &Lightmaps,
+    pages: &[EncodedPage],
     name: &str,
 ) -> Result<Vec<u8>> {
     let fail = |m: String| encode_error(name, m);
@@ -163,7 +140,7 @@ pub fn baked_glb(
     let mut doc = src.json.clone();
     let (mut b, view_offsets) = pack_buffers(&doc, &src.buffers);
     embed_images(&mut doc, &src.images, &mut b, name)?;
-    let pages = lightmap_textures(&mut doc, &mut b, lightmaps);
+    let pages = lightmap_textures(&mut doc, &mut b, pages);
     let prims = reindex_primitives(scene, atlas, &doc, &mut b, &view_offsets, name)?;
     lightmapped_instances(scene, atlas, &mut doc, &prims, &pages);
     Ok(finish(doc, b))
@@ -244,15 +221,15 @@ fn embed_images(
     Ok(())
 }
 
-/// The lightmap pages as textures: each page's texture and its
-/// `MOZ_lightmap` intensity.
+/// The lightmap pages as textures, and each instance's `MOZ_lightmap`
+/// intensity.
 struct PageTextures {
     texture: Vec<usize>,
     intensity: Vec<f32>,
 }
 
 /// Step 3: the lightmap pages as PNG textures.
-fn lightmap_textures(doc: &mut Value, b: &mut Builder, lightmaps: &Lightmaps) -> PageTextures {
+fn lightmap_textures(doc: &mut Value, b: &mut Builder, encoded: &[EncodedPage]) -> PageTextures {
     let mut pages = PageTextures {
         texture: Vec::new(),
         intensity: Vec::new(),
@@ -262,9 +239,8 @@ fn lightmap_textures(doc: &mut Value, b: &mut Builder, lightmaps: &Lightmaps) ->
         "samplers",
         json!({"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}),
     );
-    for page in 0..lightmaps.pages.len() {
-        let (png, scale) = encode_png(lightmaps, page);
-        let view = b.view(&png, None, None);
+    for (page, e) in encoded.iter().enumerate() {
+        let view = b.view(&e.png, None, None);
         let image = push(
             doc,
             "images",
@@ -275,9 +251,15 @@ fn lightmap_textures(doc: &mut Value, b: &mut Builder, lightmaps: &Lightmaps) ->
             "textures",
             json!({"source": image, "sampler": sampler, "name": format!("lightmap_{page}")}),
         ));
-        // MOZ_lightmap's intensity includes π: three.js reads texel × intensity as irradiance.
-        pages.intensity.push(std::f32::consts::PI * scale);
     }
+    // MOZ_lightmap's intensity includes π: three.js reads texel × intensity
+    // as irradiance. One scale per instance (its page's encoding).
+    pages.intensity = (0..encoded.first().map_or(0, |e| e.scales.len()))
+        .map(|i| {
+            let s = encoded.iter().find_map(|e| e.scales[i]).unwrap_or(1.0);
+            std::f32::consts::PI * s
+        })
+        .collect();
     pages
 }
 
@@ -499,7 +481,7 @@ fn lightmapped_instances(
                 let lightmap = json!({
                     "index": pages.texture[page],
                     "texCoord": 1,
-                    "intensity": pages.intensity[page],
+                    "intensity": pages.intensity[i],
                     "extensions": {"KHR_texture_transform": {
                         "offset": [rect.min[0], rect.min[1]],
                         "scale": [rect.max[0] - rect.min[0], rect.max[1] - rect.min[1]],

@@ -4,6 +4,7 @@
 //! leaves a half-written file where a good one was.
 
 pub mod baked;
+pub mod png8;
 pub mod probes;
 
 use crate::error::{Error, Result};
@@ -313,23 +314,25 @@ pub fn write_engine_outputs(
     })?;
     let mut written = Vec::new();
     let mut pages = Vec::new();
-    for page in 0..lightmaps.pages.len() {
-        let (png, scale) = baked::encode_png(lightmaps, page);
+    let encoded: Vec<png8::EncodedPage> = (0..lightmaps.pages.len())
+        .map(|page| png8::encode_page(lightmaps, atlas, page))
+        .collect();
+    for (page, e) in encoded.iter().enumerate() {
         let name = format!("lightmap_{page}_srgb.png");
-        write_bytes_atomic(&out_dir.join(&name), &png)?;
+        write_bytes_atomic(&out_dir.join(&name), &e.png)?;
         written.push(out_dir.join(&name));
         pages.push(serde_json::json!({
             "page": page,
             "exr": format!("lightmap_{page}.exr"),
             "png": name,
-            "png_encoding": "srgb",
-            "png_scale": scale,
-            "moz_lightmap_intensity": std::f32::consts::PI * scale,
+            "png_encoding": "srgb, dithered; one scale per instance rectangle (instances[].png_scale), the page's largest value outside them",
+            "png_page_scale": e.page_scale,
         }));
     }
+    let scale_of = |i: usize| encoded.iter().find_map(|e| e.scales[i]).unwrap_or(1.0);
     let glb_name = format!("{stem}.baked.glb");
     if scene.source.is_some() {
-        let glb = baked::baked_glb(scene, atlas, lightmaps, &glb_name)?;
+        let glb = baked::baked_glb(scene, atlas, &encoded, &glb_name)?;
         write_bytes_atomic(&out_dir.join(&glb_name), &glb)?;
         written.push(out_dir.join(&glb_name));
     }
@@ -345,6 +348,8 @@ pub fn write_engine_outputs(
                 "mesh": scene.meshes[inst.mesh as usize].name,
                 "page": r.page,
                 "uv_rect": [r.min[0], r.min[1], r.max[0], r.max[1]],
+                "png_scale": scale_of(i),
+                "moz_lightmap_intensity": std::f32::consts::PI * scale_of(i),
             })
         })
         .collect();
@@ -366,7 +371,7 @@ pub fn write_engine_outputs(
         "radbake_version": env!("CARGO_PKG_VERSION"),
         "convention": "a texel holds incident irradiance / pi (linear RGB): outgoing radiance = albedo * texel + emission",
         "uv": "TEXCOORD_1 in [0,1] per instance; atlas uv = mix(uv_rect.xy, uv_rect.zw, TEXCOORD_1); (0,0) is the top-left texel corner",
-        "png_decoding": "value = srgb_to_linear(png) * png_scale",
+        "png_decoding": "value = srgb_to_linear(png) * png_scale of the instance whose uv_rect holds the texel",
         "baked_gltf": if scene.source.is_some() { serde_json::json!(glb_name) } else { serde_json::Value::Null },
         "pages": pages,
         "instances": instances,
