@@ -34,6 +34,42 @@ impl Wrap {
     }
 }
 
+/// A glTF sampler filter (`magFilter`, and each half of `minFilter`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Filter {
+    /// `NEAREST` (9728).
+    Nearest,
+    /// `LINEAR` (9729), the default.
+    #[default]
+    Linear,
+}
+
+/// A glTF sampler's filters. The bake filters bilinearly whatever they say
+/// (its texels stage picks mip levels itself); `radbake preview` follows
+/// them as three.js's `GLTFLoader` does: an absent filter is `LINEAR` for
+/// magnification and `LINEAR_MIPMAP_LINEAR` for minification, and a
+/// `minFilter` of `NEAREST` or `LINEAR` means no mipmaps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Filters {
+    /// `magFilter`.
+    pub mag: Filter,
+    /// The texel filter of `minFilter`.
+    pub min: Filter,
+    /// The mip filter of `minFilter`; None: level 0 only.
+    pub mipmap: Option<Filter>,
+}
+
+impl Default for Filters {
+    /// No sampler, or one without filters: `LINEAR` / `LINEAR_MIPMAP_LINEAR`.
+    fn default() -> Self {
+        Filters {
+            mag: Filter::Linear,
+            min: Filter::Linear,
+            mipmap: Some(Filter::Linear),
+        }
+    }
+}
+
 /// An RGBA8 texture whose RGB is sRGB-encoded (base colour, emissive).
 #[derive(Clone, Debug)]
 pub struct Texture {
@@ -47,6 +83,8 @@ pub struct Texture {
     pub wrap_s: Wrap,
     /// Vertical wrap.
     pub wrap_t: Wrap,
+    /// The sampler's filters (used by the preview only).
+    pub filters: Filters,
 }
 
 /// Box-filtered levels 1, 2, … (each half the size of the one above, to
@@ -227,6 +265,11 @@ pub struct TextureRef {
     pub rotation: f32,
     /// UV scale.
     pub scale: Vec2,
+    /// The `TEXCOORD_n` set the texture is read through (`texCoord`, or
+    /// `KHR_texture_transform.texCoord` where that overrides it). The bake
+    /// reads every texture through `TEXCOORD_0` (with a warning otherwise);
+    /// the preview reads sets 0 and 1, as three.js does.
+    pub tex_coord: u32,
 }
 
 impl TextureRef {
@@ -263,6 +306,7 @@ mod tests {
                 .collect(),
             wrap_s: Wrap::Repeat,
             wrap_t: Wrap::Repeat,
+            filters: Filters::default(),
         };
         let levels = t.build_mips();
         let dims: Vec<(u32, u32)> = levels.iter().map(|l| (l.width, l.height)).collect();
@@ -306,6 +350,7 @@ mod tests {
             offset: Vec2::new(0.5, 0.0),
             rotation: 0.0,
             scale: Vec2::new(2.0, 1.0),
+            tex_coord: 0,
         };
         assert_eq!(t.transform_uv(Vec2::new(0.25, 0.5)), Vec2::new(1.0, 0.5));
     }
@@ -318,6 +363,7 @@ mod tests {
             rgba: vec![[255, 255, 255, 128]; 4],
             wrap_s: Wrap::Repeat,
             wrap_t: Wrap::Repeat,
+            filters: Filters::default(),
         };
         let v = t.sample(Vec2::new(0.3, 0.9));
         assert!((v.x - 1.0).abs() < 1e-6 && (v.w - 128.0 / 255.0).abs() < 1e-6);
