@@ -31,6 +31,8 @@ enum Command {
     Render(cli::render::RenderArgs),
     /// Measure the irradiance nodes receive, independently of any bake (JSON out).
     Measure(cli::measure::MeasureArgs),
+    /// Look at a bake in a browser: the three.js viewer and the bake's files on 127.0.0.1.
+    Serve(cli::serve::ServeArgs),
 }
 
 fn main() -> ExitCode {
@@ -60,6 +62,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => cli::bake::run(args),
         Command::Render(args) => cli::render::run(args),
         Command::Measure(args) => cli::measure::run(args),
+        Command::Serve(args) => cli::serve::run(args),
         #[cfg(feature = "preview")]
         Command::Preview(args) => cli::preview::run(args),
     });

@@ -96,3 +96,241 @@ fn three_js_light_probe_matches_radbake() {
         );
     }
 }
+
+/// `radbake serve` on a free port, killed on drop.
+struct Served {
+    child: std::process::Child,
+    port: u16,
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Serves the bake in `dir`; returns once the server has printed its URL
+/// (it prints after binding).
+fn serve(dir: &Path) -> Served {
+    use std::io::BufRead as _;
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(["serve", dir.to_str().unwrap(), "--port", &port.to_string()])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(line.contains("radbake viewer: http://127.0.0.1:"), "{line}");
+    Served { child, port }
+}
+
+/// The viewer page's canvas for `query`, as linear RGB; asserts the page
+/// loaded with no console error.
+fn viewer(port: u16, query: &str, out: &Path) -> Vec<Vec3> {
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web");
+    let url = format!("http://127.0.0.1:{port}/?{query}");
+    let run = Command::new("node")
+        .arg(web.join("viewer_check.mjs"))
+        .arg(&url)
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(
+        json["errors"],
+        serde_json::json!([]),
+        "console errors on {url}"
+    );
+    linear_pixels(out)
+}
+
+/// `radbake preview --headless --tone-map none` of `glb` from `camera`.
+fn preview(glb: &Path, camera: &str, size: &str, out: &Path) -> Vec<Vec3> {
+    let run = Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args([
+            "preview",
+            glb.to_str().unwrap(),
+            "--headless",
+            "--tone-map",
+            "none",
+        ])
+        .args([
+            "--camera",
+            camera,
+            "--size",
+            size,
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    linear_pixels(out)
+}
+
+fn linear_pixels(png: &Path) -> Vec<Vec3> {
+    let img = image::open(png).unwrap().to_rgb8();
+    let lin = |c: u8| radbake::scene::texture::srgb_to_linear(c as f32 / 255.0);
+    img.pixels()
+        .map(|p| Vec3::new(lin(p[0]), lin(p[1]), lin(p[2])))
+        .collect()
+}
+
+/// (mean of a / mean of b, 95th percentile of the per-pixel relative
+/// difference |a − b| / max(b, 1 % of b's mean), on the RGB mean).
+fn agreement(a: &[Vec3], b: &[Vec3]) -> (f64, f64) {
+    let lum = |v: &Vec3| (v.element_sum() / 3.0) as f64;
+    let (sa, sb): (f64, f64) = (a.iter().map(lum).sum(), b.iter().map(lum).sum());
+    let floor = 0.01 * sb / b.len() as f64;
+    let mut d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (lum(x) - lum(y)).abs() / lum(y).max(floor))
+        .collect();
+    d.sort_by(f64::total_cmp);
+    (sa / sb, d[d.len() * 95 / 100])
+}
+
+/// The viewer page (three.js, radbake's plugin) and `radbake preview`
+/// render the same bake from the same glTF camera, no tone mapping: mean
+/// linear radiance within 2 %, 95th-percentile per-pixel difference within
+/// 5 %. The Cornell box, and the breakfast room (textured, from
+/// `scenes/real`).
+#[test]
+#[ignore = "needs tests/web/node_modules and Chromium (CI runs it)"]
+fn viewer_page_matches_the_preview() {
+    let cases = [
+        (
+            "cornell_box.gltf",
+            "cornell_box",
+            "camera",
+            "400x400",
+            vec![],
+        ),
+        (
+            "real/breakfast_room/BreakfastRoom.lit.gltf",
+            "BreakfastRoom.lit",
+            "CameraMain",
+            "480x320",
+            vec!["--preset", "preview"],
+        ),
+    ];
+    for (scene, stem, camera, size, extra) in cases {
+        let out = temp_dir(&format!("web-viewer-{stem}"));
+        let run = Command::new(env!("CARGO_BIN_EXE_radbake"))
+            .args([
+                "bake",
+                scene_path(scene).to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "-q",
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let glb = out.join(format!("{stem}.baked.glb"));
+        let server = serve(&out);
+        let query = format!(
+            "url=/bake/{stem}.baked.glb&camera={camera}&size={size}&tonemap=none&exposure=0"
+        );
+        let three = viewer(server.port, &query, &out.join("three.png"));
+        let ours = preview(&glb, camera, size, &out.join("preview.png"));
+        let (mean, p95) = agreement(&three, &ours);
+        eprintln!(
+            "{stem}: three.js / preview mean {mean:.4}, 95th-percentile pixel difference {:.2} %",
+            100.0 * p95
+        );
+        assert!((mean - 1.0).abs() <= 0.02, "{stem}: mean ratio {mean}");
+        assert!(p95 <= 0.05, "{stem}: 95th percentile {p95}");
+    }
+}
+
+/// The stock Hubs-style semantics (bytes read as linear, intensity as is)
+/// fail in exactly the documented way: in the lightmap view, where radbake's
+/// plugin renders v, they render s · srgb(v / s) (s: the instance's
+/// `png_scale`). A one-instance scene (a floor under a point light, seen
+/// from above), so that s is one number.
+#[test]
+#[ignore = "needs tests/web/node_modules and Chromium (CI runs it)"]
+fn stock_hubs_semantics_fail_as_documented() {
+    let mut b = common::GltfBuilder::default();
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = common::quad([-2.0, 0.0, -2.0], [0.0, 0.0, 4.0], [4.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let mut doc = b.json();
+    doc["extensionsUsed"] = serde_json::json!(["KHR_lights_punctual"]);
+    doc["extensions"] = serde_json::json!({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 3.0}]}});
+    doc["cameras"] = serde_json::json!([{"name": "top", "type": "perspective", "perspective": {"yfov": 0.9, "znear": 0.05, "zfar": 50.0}}]);
+    let down = glam::Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    nodes.push(serde_json::json!({"name": "bulb", "translation": [0.6, 1.0, 0.3], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+    nodes.push(serde_json::json!({"name": "top", "camera": 0, "translation": [0.0, 3.0, 0.0], "rotation": down.to_array()}));
+    let n = nodes.len();
+    doc["scenes"][0]["nodes"] = serde_json::json!((0..n).collect::<Vec<_>>());
+    let out = temp_dir("web-hubs");
+    let path = out.join("floor.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let config = BakeConfig {
+        texels_per_meter: 32.0,
+        probes: false,
+        ..BakeConfig::default()
+    };
+    let bake = radbake::bake(&scene, &config, &Silent).unwrap();
+    radbake::output::write_engine_outputs(&out, "floor", &bake).unwrap();
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    let s = manifest["instances"][0]["png_scale"].as_f64().unwrap() as f32;
+    let server = serve(&out);
+    let q = "url=/bake/floor.baked.glb&camera=top&size=256x256&tonemap=none&view=lightmap";
+    let ours = viewer(server.port, q, &out.join("radbake.png"));
+    let hubs = viewer(
+        server.port,
+        &format!("{q}&loader=hubs"),
+        &out.join("hubs.png"),
+    );
+    let predicted: Vec<Vec3> = ours
+        .iter()
+        .map(|v| {
+            (*v / s)
+                .clamp(Vec3::ZERO, Vec3::ONE)
+                .to_array()
+                .map(radbake::scene::texture::linear_to_srgb)
+        })
+        .map(|c| Vec3::from(c) * s)
+        .collect();
+    let (mean_pred, p95) = agreement(&hubs, &predicted);
+    let (too_bright, _) = agreement(&hubs, &ours);
+    eprintln!("Hubs semantics: {too_bright:.2} × as bright as radbake's plugin; against s·srgb(v/s): mean {mean_pred:.4}, 95th percentile {:.2} %", 100.0 * p95);
+    assert!(
+        too_bright > 1.2,
+        "the stock path should render too bright: {too_bright}"
+    );
+    assert!(
+        (mean_pred - 1.0).abs() < 0.02 && p95 < 0.05,
+        "{mean_pred}, {p95}"
+    );
+}

@@ -1,5 +1,5 @@
 //! The `radbake` subcommands, one file each: [`bake`], [`render`],
-//! [`measure`] and [`preview`], with [`progress`] (bars or JSON lines). This file holds what
+//! [`measure`], [`preview`] and [`serve`], with [`progress`] (bars or JSON lines). This file holds what
 //! they share: viewpoint arguments, value parsers and exit codes.
 //!
 //! Exit codes: 0 success (or already up to date), 1 bad input (scene or
@@ -11,6 +11,7 @@ pub mod measure;
 pub mod preview;
 pub mod progress;
 pub mod render;
+pub mod serve;
 
 use clap::Args;
 
