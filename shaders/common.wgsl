@@ -43,7 +43,7 @@ struct Material {
     lightmap_scale: f32,
     // FLAG_* below.
     flags: u32,
-    // alphaCutoff for MASK, or a negative number for opaque.
+    // alphaCutoff for MASK, or a negative number for OPAQUE and BLEND.
     alpha_cutoff: f32,
     _pad: f32,
 }
@@ -68,6 +68,11 @@ const PROBE_INVALID: f32 = 2.0;
 const FLAG_BASE_TEXTURE: u32 = 1u;
 const FLAG_EMISSIVE_TEXTURE: u32 = 2u;
 const FLAG_LIGHTMAP: u32 = 4u;
+// alphaMode BLEND: output the alpha for blending, no cut-out.
+const FLAG_BLEND: u32 = 8u;
+// The base colour / emissive texture is read through TEXCOORD_1.
+const FLAG_BASE_UV1: u32 = 16u;
+const FLAG_EMISSIVE_UV1: u32 = 32u;
 
 fn apply_uv_transform(row0: vec4<f32>, row1: vec4<f32>, uv: vec2<f32>) -> vec2<f32> {
     return vec2<f32>(dot(row0.xy, uv) + row0.z, dot(row1.xy, uv) + row1.z);

@@ -1,5 +1,10 @@
 // The preview's one shader: base colour × lightmap + emissive, tone mapped,
-// with the debug views. Probe-lit vertices (dynamic nodes, probe spheres)
+// with the debug views. It follows three.js r187's MeshLambertMaterial with
+// no lights but the lightmap (meshlambert.glsl.js): diffuseColor =
+// baseColorFactor × map × COLOR_0 (map_fragment, color_fragment), alpha
+// test for MASK (alphatest_fragment), outgoing = diffuseColor.rgb ×
+// lightmap irradiance / π + emissive × emissiveMap (lights_fragment_maps,
+// BRDF_Lambert, emissivemap_fragment), alpha = diffuseColor.a for BLEND. Probe-lit vertices (dynamic nodes, probe spheres)
 // carry their light, irradiance / π from the bake's probes computed per
 // vertex on the CPU, in place of the lightmap. Prefixed with common.wgsl by the Rust side.
 
@@ -27,6 +32,8 @@ struct VertexIn {
     // rgb: irradiance / π from the probes (per vertex, clamped at 0);
     // w: PROBE_NONE (lightmapped), PROBE_LIT or PROBE_INVALID.
     @location(5) probe: vec4<f32>,
+    // COLOR_0, linear RGBA (white where the mesh has none).
+    @location(6) color: vec4<f32>,
 }
 
 struct VertexOut {
@@ -38,6 +45,7 @@ struct VertexOut {
     @location(4) bary: vec3<f32>,
     @location(5) @interpolate(flat) edges: u32,
     @location(6) probe: vec4<f32>,
+    @location(7) color: vec4<f32>,
 }
 
 @vertex
@@ -52,6 +60,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.bary = vec3<f32>(f32(corner == 0u), f32(corner == 1u), f32(corner == 2u));
     out.edges = v.corner_edges >> 2u;
     out.probe = v.probe;
+    out.color = v.color;
     return out;
 }
 
@@ -74,21 +83,26 @@ fn debug_at(uv: vec2<f32>) -> vec4<f32> {
 
 @fragment
 fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
-    // Derivatives first, in uniform control flow.
+    // Derivatives first, in uniform control flow: fwidth, and the
+    // trilinear (mipmapped) texture samples, whose branches depend on the
+    // material uniform only.
     let bary_width = fwidth(in.bary);
+    let flags = material.flags;
 
-    var base = material.base_color;
-    if (material.flags & FLAG_BASE_TEXTURE) != 0u {
-        let uv = apply_uv_transform(material.base_uv0, material.base_uv1, in.uv0);
-        base = base * textureSampleLevel(base_texture, base_sampler, uv, 0.0);
+    var base = material.base_color * in.color;
+    if (flags & FLAG_BASE_TEXTURE) != 0u {
+        let uv_set = select(in.uv0, in.uv1, (flags & FLAG_BASE_UV1) != 0u);
+        let uv = apply_uv_transform(material.base_uv0, material.base_uv1, uv_set);
+        base = base * textureSample(base_texture, base_sampler, uv);
+    }
+    var emissive = material.emissive.rgb;
+    if (flags & FLAG_EMISSIVE_TEXTURE) != 0u {
+        let uv_set = select(in.uv0, in.uv1, (flags & FLAG_EMISSIVE_UV1) != 0u);
+        let uv = apply_uv_transform(material.emissive_uv0, material.emissive_uv1, uv_set);
+        emissive = emissive * textureSample(emissive_texture, emissive_sampler, uv).rgb;
     }
     if material.alpha_cutoff >= 0.0 && base.a < material.alpha_cutoff {
         discard;
-    }
-    var emissive = material.emissive.rgb;
-    if (material.flags & FLAG_EMISSIVE_TEXTURE) != 0u {
-        let uv = apply_uv_transform(material.emissive_uv0, material.emissive_uv1, in.uv0);
-        emissive = emissive * textureSampleLevel(emissive_texture, emissive_sampler, uv, 0.0).rgb;
     }
     let atlas_uv = material.lightmap_rect.xy + in.uv1 * material.lightmap_rect.zw;
     // The light: the lightmap's irradiance / π, or the probes' for
@@ -168,6 +182,8 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             color = tone_map(lit, globals.exposure, globals.tone_map);
         }
     }
-    // The render target is sRGB: the hardware encodes.
-    return vec4<f32>(color, 1.0);
+    // The render target is sRGB: the hardware encodes (and blends BLEND
+    // materials in linear space). Opaque and masked materials write alpha 1.
+    let alpha = select(1.0, base.a, (flags & FLAG_BLEND) != 0u);
+    return vec4<f32>(color, alpha);
 }

@@ -136,7 +136,7 @@ fn wgsl_struct_layouts_match_rust() {
     }
     assert_eq!(
         std::mem::size_of::<gpu::Vertex>(),
-        offsets[5] + 16,
+        offsets[gpu::Vertex::ATTRIBUTES.len() - 1] + 16,
         "Vertex has no tail padding"
     );
     // The constants written in both languages.

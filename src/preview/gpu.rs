@@ -40,6 +40,13 @@ pub const FLAG_BASE_TEXTURE: u32 = 1;
 pub const FLAG_EMISSIVE_TEXTURE: u32 = 2;
 /// `Material::flags`: the material has a lightmap (`MOZ_lightmap`).
 pub const FLAG_LIGHTMAP: u32 = 4;
+/// `Material::flags`: glTF `alphaMode` `BLEND`: the fragment's alpha is
+/// written for alpha blending (three.js `transparent: true`), not cut out.
+pub const FLAG_BLEND: u32 = 8;
+/// `Material::flags`: the base colour texture is read through `TEXCOORD_1`.
+pub const FLAG_BASE_UV1: u32 = 16;
+/// `Material::flags`: the emissive texture is read through `TEXCOORD_1`.
+pub const FLAG_EMISSIVE_UV1: u32 = 32;
 
 /// WGSL `Material` (group 1, binding 0).
 #[repr(C)]
@@ -63,7 +70,7 @@ pub struct Material {
     pub lightmap_scale: f32,
     /// `FLAG_*`.
     pub flags: u32,
-    /// alphaCutoff for MASK/BLEND, negative for opaque.
+    /// alphaCutoff for MASK, negative for OPAQUE and BLEND.
     pub alpha_cutoff: f32,
     /// Padding.
     pub _pad: f32,
@@ -72,7 +79,7 @@ pub struct Material {
 /// One vertex (world space; triangles are not indexed, so each vertex knows
 /// its corner for the chart-border view).
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct Vertex {
     /// World position.
     pub position: [f32; 3],
@@ -89,6 +96,9 @@ pub struct Vertex {
     /// vertex (computed on the CPU, clamped at 0), w = [`PROBE_NONE`],
     /// [`PROBE_LIT`] or [`PROBE_INVALID`].
     pub probe: [f32; 4],
+    /// `COLOR_0` (linear RGBA; white where the mesh has none), multiplied
+    /// into the base colour.
+    pub color: [f32; 4],
 }
 
 /// [`Vertex::probe`] w: lightmapped geometry (the probe rgb is unused).
@@ -99,11 +109,21 @@ pub const PROBE_LIT: f32 = 1.0;
 /// [`Vertex::probe`] w: the sphere of an invalid probe, drawn red.
 pub const PROBE_INVALID: f32 = 2.0;
 
+impl Default for Vertex {
+    /// All zeros but a white `color` (no vertex colour).
+    fn default() -> Self {
+        Vertex {
+            color: [1.0; 4],
+            ..Zeroable::zeroed()
+        }
+    }
+}
+
 impl Vertex {
     /// The vertex buffer layout matching `VertexIn` in `shaders/preview.wgsl`.
-    pub const ATTRIBUTES: [wgpu::VertexAttribute; 6] = wgpu::vertex_attr_array![
+    pub const ATTRIBUTES: [wgpu::VertexAttribute; 7] = wgpu::vertex_attr_array![
         0 => Float32x3, 1 => Float32x3, 2 => Float32x2, 3 => Float32x2, 4 => Uint32,
-        5 => Float32x4
+        5 => Float32x4, 6 => Float32x4
     ];
 
     /// The vertex buffer layout.
@@ -158,7 +178,7 @@ pub fn layouts() -> Vec<Layout> {
 }
 
 /// `Vertex` field offsets in attribute (shader location) order.
-pub fn vertex_offsets() -> [usize; 6] {
+pub fn vertex_offsets() -> [usize; 7] {
     use std::mem::offset_of;
     [
         offset_of!(Vertex, position),
@@ -167,5 +187,6 @@ pub fn vertex_offsets() -> [usize; 6] {
         offset_of!(Vertex, uv1),
         offset_of!(Vertex, corner_edges),
         offset_of!(Vertex, probe),
+        offset_of!(Vertex, color),
     ]
 }

@@ -25,6 +25,7 @@
 pub mod camera;
 pub mod gpu;
 pub mod headless;
+pub mod mips;
 pub mod model;
 pub mod options;
 pub mod probe_light;

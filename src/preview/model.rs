@@ -61,6 +61,13 @@ pub struct Batch {
     pub material: usize,
     /// Vertex range.
     pub vertices: std::ops::Range<u32>,
+    /// For a blended (glTF `BLEND`) material, the batch is one three.js
+    /// object (one glTF primitive of one node) and this is the world
+    /// position three.js sorts it by: the centre of its bounding box (the
+    /// centre of `BufferGeometry.computeBoundingSphere`), placed by the
+    /// node's transform. None for opaque and masked materials, whose
+    /// batches hold all their triangles.
+    pub origin: Option<Vec3>,
 }
 
 /// A material as the preview draws it.
@@ -76,6 +83,9 @@ pub struct PreviewMaterial {
     pub lightmap: Option<usize>,
     /// Drawn without back-face culling.
     pub double_sided: bool,
+    /// glTF `BLEND`: alpha blended after the opaque batches, back to front,
+    /// without writing depth (three.js `transparent`, `depthWrite: false`).
+    pub blend: bool,
 }
 
 /// Everything the renderer uploads.
@@ -85,7 +95,8 @@ pub struct Model {
     /// Non-indexed world-space triangles of the instances (lightmapped) and
     /// the dynamic nodes (probe-lit), sorted by material.
     pub vertices: Vec<Vertex>,
-    /// Draw ranges, one per material used.
+    /// Draw ranges: one per opaque or masked material used, then one per
+    /// object (node × primitive) of each blended material.
     pub batches: Vec<Batch>,
     /// Materials, parallel to [`Scene::materials`], then (with probes) the
     /// probe spheres' white one.
@@ -244,6 +255,18 @@ fn preview_material(m: &crate::scene::Material, lm: Option<LightmapRef>) -> Prev
     if lm.is_some() {
         flags |= gpu::FLAG_LIGHTMAP;
     }
+    if m.blend {
+        flags |= gpu::FLAG_BLEND;
+    }
+    // three.js reads a texture with `channel` 1 through TEXCOORD_1 (in a
+    // baked .glb, the lightmap UV); sets above 1 are read through
+    // TEXCOORD_0 here (the preview carries no third set).
+    if m.albedo_texture.as_ref().is_some_and(|t| t.tex_coord == 1) {
+        flags |= gpu::FLAG_BASE_UV1;
+    }
+    if m.emission_texture.as_ref().is_some_and(|t| t.tex_coord == 1) {
+        flags |= gpu::FLAG_EMISSIVE_UV1;
+    }
     let lm_rect = lm.map_or([0.0, 0.0, 1.0, 1.0], |l| {
         [l.offset.x, l.offset.y, l.scale.x, l.scale.y]
     });
@@ -258,9 +281,10 @@ fn preview_material(m: &crate::scene::Material, lm: Option<LightmapRef>) -> Prev
             lightmap_rect: lm_rect,
             lightmap_scale: lm.map_or(0.0, |l| l.intensity / std::f32::consts::PI),
             flags,
+            // three.js sets alphaTest for MASK only; BLEND blends uncut.
             alpha_cutoff: match m.alpha {
-                Alpha::Opaque => -1.0,
-                Alpha::Mask { cutoff } => cutoff,
+                Alpha::Mask { cutoff } if !m.blend => cutoff,
+                _ => -1.0,
             },
             _pad: 0.0,
         },
@@ -268,6 +292,7 @@ fn preview_material(m: &crate::scene::Material, lm: Option<LightmapRef>) -> Prev
         emissive_texture: m.emission_texture.as_ref().map(|t| t.texture),
         lightmap: lm.map(|l| l.page),
         double_sided: m.double_sided,
+        blend: m.blend,
     }
 }
 
@@ -292,6 +317,7 @@ fn sphere_material() -> PreviewMaterial {
         emissive_texture: None,
         lightmap: None,
         double_sided: false,
+        blend: false,
     }
 }
 
@@ -304,22 +330,48 @@ enum Light<'a> {
     Probes(Option<&'a Probes>),
 }
 
-/// Appends `inst`'s triangles, in world space, to `per_material`.
+/// Triangles gathered for the draw batches: per material for opaque and
+/// masked materials, per object (node × glTF primitive) for blended ones.
+#[derive(Default)]
+struct Gathered {
+    per_material: Vec<Vec<Vertex>>,
+    /// (material, world origin, triangles) per blended object, in order.
+    blended: Vec<(usize, Vec3, Vec<Vertex>)>,
+}
+
+/// Appends `inst`'s triangles, in world space, to `out`; `blend[m]`:
+/// material m is blended.
 fn push_instance(
-    per_material: &mut [Vec<Vertex>],
+    out: &mut Gathered,
     scene: &Scene,
     inst: &crate::scene::Instance,
     light: Light,
+    blend: &[bool],
 ) {
     let mesh = &scene.meshes[inst.mesh as usize];
     let m = inst.world_from_local;
     let nm = inst.normal_matrix();
     let corners = if inst.mirrors() { [0, 2, 1] } else { [0, 1, 2] };
+    // Blended triangles by glTF primitive: (material, local bounds, vertices).
+    let mut objects: std::collections::BTreeMap<u32, (usize, Vec3, Vec3, Vec<Vertex>)> =
+        Default::default();
     for (t, tri) in mesh.triangles.iter().enumerate() {
         let mat = mesh.triangle_material[t] as usize;
         let edges = match light {
             Light::Lightmap(borders) => borders[t] as u32,
             Light::Probes(_) => 0,
+        };
+        let target = if blend[mat] {
+            let o = objects
+                .entry(mesh.triangle_primitive[t])
+                .or_insert_with(|| (mat, Vec3::INFINITY, Vec3::NEG_INFINITY, Vec::new()));
+            for &v in tri {
+                let p = mesh.positions[v as usize];
+                (o.1, o.2) = (o.1.min(p), o.2.max(p));
+            }
+            &mut o.3
+        } else {
+            &mut out.per_material[mat]
         };
         // The corner index stays the source triangle's, so the edge mask
         // holds whatever the drawing order.
@@ -327,7 +379,7 @@ fn push_instance(
             let v = tri[c] as usize;
             let p = m.transform_point3(mesh.positions[v]);
             let n = (nm * mesh.normals[v]).normalize_or_zero();
-            per_material[mat].push(Vertex {
+            target.push(Vertex {
                 position: p.to_array(),
                 normal: n.to_array(),
                 uv0: mesh.uv0[v].to_array(),
@@ -337,8 +389,13 @@ fn push_instance(
                     Light::Lightmap(_) => [0.0, 0.0, 0.0, gpu::PROBE_NONE],
                     Light::Probes(probes) => probe_light::vertex_light(probes, p, n),
                 },
+                color: mesh.colors.as_ref().map_or([1.0; 4], |c| c[v].to_array()),
             });
         }
+    }
+    for (_, (mat, lo, hi, vertices)) in objects {
+        let origin = m.transform_point3(0.5 * (lo + hi));
+        out.blended.push((mat, origin, vertices));
     }
 }
 
@@ -422,23 +479,26 @@ impl Model {
                 None => vec![0; mesh.triangles.len()],
             })
             .collect();
-        // Triangles per material, then concatenated.
-        let mut per_material: Vec<Vec<Vertex>> = vec![Vec::new(); materials.len()];
+        // Triangles per material (per object where blended), then concatenated.
+        let blend: Vec<bool> = materials.iter().map(|m| m.blend).collect();
+        let mut gathered = Gathered {
+            per_material: vec![Vec::new(); materials.len()],
+            blended: Vec::new(),
+        };
         for inst in &scene.instances {
             let light = Light::Lightmap(&borders[inst.mesh as usize]);
-            push_instance(&mut per_material, &scene, inst, light);
+            push_instance(&mut gathered, &scene, inst, light, &blend);
         }
         for inst in &scene.dynamic {
-            push_instance(
-                &mut per_material,
-                &scene,
-                inst,
-                Light::Probes(probes.as_ref()),
-            );
+            let light = Light::Probes(probes.as_ref());
+            push_instance(&mut gathered, &scene, inst, light, &blend);
         }
         let mut vertices = Vec::new();
         let mut batches = Vec::new();
-        for (material, vs) in per_material.into_iter().enumerate() {
+        let groups = gathered.per_material.into_iter().enumerate();
+        let opaque = groups.map(|(material, vs)| (material, None, vs));
+        let blended = gathered.blended.into_iter().map(|(m, o, vs)| (m, Some(o), vs));
+        for (material, origin, vs) in opaque.chain(blended) {
             if vs.is_empty() {
                 continue;
             }
@@ -447,6 +507,7 @@ impl Model {
             batches.push(Batch {
                 material,
                 vertices: start..vertices.len() as u32,
+                origin,
             });
         }
         let bounds = if vertices.is_empty() {

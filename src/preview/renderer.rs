@@ -4,11 +4,12 @@
 
 use super::camera::Camera;
 use super::gpu::{self, Globals, Vertex};
+use super::mips;
 use super::model::Model;
 use super::options::{Settings, ViewMode};
 use super::probe_light;
 use crate::probes::Probes;
-use crate::scene::Wrap;
+use crate::scene::{Filter, Texture, Wrap};
 use wgpu::util::DeviceExt as _;
 
 /// Depth buffer format (reverse-Z: cleared to 0, `Greater` passes).
@@ -17,6 +18,16 @@ pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 struct DrawBatch {
     vertices: std::ops::Range<u32>,
     material: usize,
+    /// Blended batches: the world position they are sorted by.
+    origin: Option<glam::Vec3>,
+}
+
+/// The render pipelines, by blending and face culling.
+struct Pipelines {
+    /// Opaque and masked: [back faces culled, double-sided].
+    opaque: [wgpu::RenderPipeline; 2],
+    /// Blended, no depth writes: [back faces culled, front faces culled].
+    blend: [wgpu::RenderPipeline; 2],
 }
 
 /// The probe spheres on the GPU (indexed; drawn in the probes view only).
@@ -64,8 +75,7 @@ pub struct Renderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
     format: wgpu::TextureFormat,
-    /// [back-face culled, double-sided].
-    pipelines: [wgpu::RenderPipeline; 2],
+    pipelines: Pipelines,
     globals: wgpu::Buffer,
     globals_group: wgpu::BindGroup,
     vertices: Option<wgpu::Buffer>,
@@ -76,6 +86,8 @@ pub struct Renderer {
     spheres: Option<Spheres>,
     material_groups: Vec<wgpu::BindGroup>,
     double_sided: Vec<bool>,
+    /// The scene's textures (kept for [`Renderer::texture_mip_levels`]).
+    scene_textures: Vec<wgpu::Texture>,
     depth: Option<(wgpu::TextureView, u32, u32)>,
     size: (u32, u32),
     /// The camera the next frame is drawn from.
@@ -100,27 +112,28 @@ fn srgb_texture(
     height: u32,
     rgba: &[u8],
 ) -> wgpu::TextureView {
-    rgba8_texture(device, queue, label, (width, height), rgba, true)
+    rgba8_texture(device, queue, label, (width, height), &[rgba], true)
+        .create_view(&Default::default())
 }
 
-/// An RGBA8 texture, sRGB-decoded on sampling or not (data maps).
+/// An RGBA8 texture, sRGB-decoded on sampling or not (data maps), with
+/// `levels` as its mip levels (level 0 first, each max(1, ⌊size / 2ⁿ⌋)).
 fn rgba8_texture(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     label: &str,
     (width, height): (u32, u32),
-    rgba: &[u8],
+    levels: &[&[u8]],
     srgb: bool,
-) -> wgpu::TextureView {
-    let size = wgpu::Extent3d {
-        width,
-        height,
-        depth_or_array_layers: 1,
-    };
+) -> wgpu::Texture {
     let texture = device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
-        size,
-        mip_level_count: 1,
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: levels.len() as u32,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
         format: if srgb {
@@ -131,31 +144,89 @@ fn rgba8_texture(
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
-    queue.write_texture(
-        wgpu::TexelCopyTextureInfo {
-            texture: &texture,
-            mip_level: 0,
-            origin: wgpu::Origin3d::ZERO,
-            aspect: wgpu::TextureAspect::All,
-        },
-        rgba,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(4 * width),
-            rows_per_image: Some(height),
-        },
-        size,
-    );
-    texture.create_view(&wgpu::TextureViewDescriptor::default())
+    for (level, rgba) in levels.iter().enumerate() {
+        let (w, h) = ((width >> level).max(1), (height >> level).max(1));
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: level as u32,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            rgba,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * w),
+                rows_per_image: Some(h),
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+    texture
 }
 
-fn sampler(device: &wgpu::Device, s: Wrap, t: Wrap) -> wgpu::Sampler {
+/// The scene's base colour / emissive textures with their full mip chains
+/// ([`mips::mip_chain`], filtered in linear space; built in parallel).
+fn scene_textures(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    textures: &[Texture],
+) -> Vec<wgpu::Texture> {
+    use rayon::prelude::*;
+    let chains: Vec<Vec<Vec<u8>>> = textures
+        .par_iter()
+        .map(|t| mips::mip_chain(t.width, t.height, bytemuck::cast_slice(&t.rgba), true))
+        .collect();
+    textures
+        .iter()
+        .zip(&chains)
+        .enumerate()
+        .map(|(i, (t, chain))| {
+            let levels: Vec<&[u8]> = std::iter::once(bytemuck::cast_slice(&t.rgba))
+                .chain(chain.iter().map(Vec::as_slice))
+                .collect();
+            let label = format!("texture{i}");
+            rgba8_texture(device, queue, &label, (t.width, t.height), &levels, true)
+        })
+        .collect()
+}
+
+/// The lightmaps' and "no texture" sampler: bilinear, clamped, level 0.
+fn clamp_sampler(device: &wgpu::Device) -> wgpu::Sampler {
     device.create_sampler(&wgpu::SamplerDescriptor {
-        label: Some("sampler"),
-        address_mode_u: address_mode(s),
-        address_mode_v: address_mode(t),
+        label: Some("clamp"),
         mag_filter: wgpu::FilterMode::Linear,
         min_filter: wgpu::FilterMode::Linear,
+        ..Default::default()
+    })
+}
+
+/// A scene texture's sampler, as three.js sets it from the glTF sampler:
+/// wrap modes, `magFilter`, `minFilter` (by default `LINEAR` and
+/// `LINEAR_MIPMAP_LINEAR`: trilinear; a `minFilter` without mipmaps reads
+/// level 0 only), anisotropy 1 (three.js's `Texture.anisotropy` default).
+fn texture_sampler(device: &wgpu::Device, t: &Texture) -> wgpu::Sampler {
+    let filter = |f: Filter| match f {
+        Filter::Nearest => wgpu::FilterMode::Nearest,
+        Filter::Linear => wgpu::FilterMode::Linear,
+    };
+    let f = t.filters;
+    device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("texture"),
+        address_mode_u: address_mode(t.wrap_s),
+        address_mode_v: address_mode(t.wrap_t),
+        mag_filter: filter(f.mag),
+        min_filter: filter(f.min),
+        mipmap_filter: match f.mipmap {
+            Some(Filter::Linear) => wgpu::MipmapFilterMode::Linear,
+            _ => wgpu::MipmapFilterMode::Nearest,
+        },
+        lod_max_clamp: if f.mipmap.is_some() { 32.0 } else { 0.0 },
+        anisotropy_clamp: 1,
         ..Default::default()
     })
 }
@@ -187,8 +258,9 @@ impl Renderer {
                 resource: globals.as_entire_binding(),
             }],
         });
-        let textures = Textures::upload(device, queue, model);
+        let mut textures = Textures::upload(device, queue, model);
         let material_groups = material_groups(device, &material_layout, model, &textures);
+        let scene_textures = std::mem::take(&mut textures.textures);
         let vertices = (!model.vertices.is_empty()).then(|| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vertices"),
@@ -210,17 +282,53 @@ impl Renderer {
                 .map(|b| DrawBatch {
                     vertices: b.vertices.clone(),
                     material: b.material,
+                    origin: b.origin,
                 })
                 .collect(),
             probes: model.probes.clone().zip(model.probe_material),
             spheres: None,
             material_groups,
             double_sided: model.materials.iter().map(|m| m.double_sided).collect(),
+            scene_textures,
             depth: None,
             size: (1, 1),
             camera,
             settings,
         }
+    }
+
+    /// The mip level count of each of the scene's textures
+    /// ([`crate::scene::Scene::textures`]) as uploaded: a full chain, to 1 × 1.
+    pub fn texture_mip_levels(&self) -> Vec<u32> {
+        self.scene_textures
+            .iter()
+            .map(wgpu::Texture::mip_level_count)
+            .collect()
+    }
+
+    /// The blended batches in three.js's drawing order for the current
+    /// camera: back to front by their origin's depth
+    /// (`reversePainterSortStable` on the projected z of the object's
+    /// bounding-sphere centre; z/w of a perspective projection grows with
+    /// the view depth d as 1 − 2n/d, so points behind the eye, d < 0, sort
+    /// as farther than every point in front), ties in model order.
+    fn blended_order(&self, view_proj: glam::Mat4) -> Vec<usize> {
+        let key = |origin: glam::Vec3| {
+            let d = (view_proj * origin.extend(1.0)).w;
+            if d == 0.0 {
+                f32::INFINITY
+            } else {
+                1.0 - 2.0 / d
+            }
+        };
+        let mut order: Vec<(usize, f32)> = self
+            .batches
+            .iter()
+            .enumerate()
+            .filter_map(|(i, b)| Some((i, key(b.origin?))))
+            .collect();
+        order.sort_by(|a, b| b.1.total_cmp(&a.1));
+        order.into_iter().map(|(i, _)| i).collect()
     }
 
     /// The colour format the pipeline was built for.
@@ -268,11 +376,9 @@ impl Renderer {
                 self.spheres = Spheres::upload(&self.device, &probes, material);
             }
         }
+        let view_proj = self.camera.view_proj(w as f32 / h as f32);
         let globals = Globals {
-            view_proj: self
-                .camera
-                .view_proj(w as f32 / h as f32)
-                .to_cols_array_2d(),
+            view_proj: view_proj.to_cols_array_2d(),
             camera_pos: self.camera.eye.extend(1.0).to_array(),
             exposure: 2f32.powf(s.exposure_ev),
             view_mode: s.view as u32,
@@ -297,12 +403,8 @@ impl Renderer {
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: 0.02,
-                            g: 0.02,
-                            b: 0.025,
-                            a: 1.0,
-                        }),
+                        // three.js's default clear colour (WebGLBackground.js).
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
                         store: wgpu::StoreOp::Store,
                     },
                 })],
@@ -319,21 +421,41 @@ impl Renderer {
                 multiview_mask: None,
             });
             pass.set_bind_group(0, &self.globals_group, &[]);
+            // As three.js: the opaque (and masked) objects, then the
+            // blended ones back to front without depth writes, a
+            // double-sided one in two passes, back faces first
+            // (WebGLRenderer.renderObject).
             if let Some(vertices) = &self.vertices {
                 pass.set_vertex_buffer(0, vertices.slice(..));
-                for b in &self.batches {
-                    let pipeline = &self.pipelines[self.double_sided[b.material] as usize];
+                for b in self.batches.iter().filter(|b| b.origin.is_none()) {
+                    let pipeline = &self.pipelines.opaque[self.double_sided[b.material] as usize];
                     pass.set_pipeline(pipeline);
                     pass.set_bind_group(1, &self.material_groups[b.material], &[]);
                     pass.draw(b.vertices.clone(), 0..1);
                 }
             }
             if let Some(sp) = self.spheres.as_ref().filter(|_| view == ViewMode::Probes) {
-                pass.set_pipeline(&self.pipelines[0]);
+                pass.set_pipeline(&self.pipelines.opaque[0]);
                 pass.set_bind_group(1, &self.material_groups[sp.material], &[]);
                 pass.set_vertex_buffer(0, sp.vertices.slice(..));
                 pass.set_index_buffer(sp.indices.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..sp.count, 0, 0..1);
+            }
+            if let Some(vertices) = &self.vertices {
+                pass.set_vertex_buffer(0, vertices.slice(..));
+                for i in self.blended_order(view_proj) {
+                    let b = &self.batches[i];
+                    pass.set_bind_group(1, &self.material_groups[b.material], &[]);
+                    let sides: &[usize] = if self.double_sided[b.material] {
+                        &[1, 0]
+                    } else {
+                        &[0]
+                    };
+                    for &side in sides {
+                        pass.set_pipeline(&self.pipelines.blend[side]);
+                        pass.draw(b.vertices.clone(), 0..1);
+                    }
+                }
             }
         }
         self.queue.submit([encoder.finish()])
@@ -494,13 +616,16 @@ fn bind_group_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::Bi
     (globals_layout, material_layout)
 }
 
-/// The render pipelines: back faces culled, and not (double-sided).
+/// The render pipelines: opaque with back faces culled, and not
+/// (double-sided); blended (three.js `NormalBlending` without premultiplied
+/// alpha: colour SRC_ALPHA, ONE_MINUS_SRC_ALPHA; alpha ONE,
+/// ONE_MINUS_SRC_ALPHA; no depth writes) with back or front faces culled.
 fn pipelines(
     device: &wgpu::Device,
     globals_layout: &wgpu::BindGroupLayout,
     material_layout: &wgpu::BindGroupLayout,
     format: wgpu::TextureFormat,
-) -> [wgpu::RenderPipeline; 2] {
+) -> Pipelines {
     let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("preview.wgsl"),
         source: wgpu::ShaderSource::Wgsl(gpu::SHADER.into()),
@@ -510,7 +635,7 @@ fn pipelines(
         bind_group_layouts: &[Some(globals_layout), Some(material_layout)],
         immediate_size: 0,
     });
-    let pipeline = |cull_mode| {
+    let pipeline = |cull_mode, blend: Option<wgpu::BlendState>| {
         device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("preview"),
             layout: Some(&layout),
@@ -528,7 +653,7 @@ fn pipelines(
             },
             depth_stencil: Some(wgpu::DepthStencilState {
                 format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
+                depth_write_enabled: Some(blend.is_none()),
                 depth_compare: Some(wgpu::CompareFunction::Greater),
                 stencil: Default::default(),
                 bias: Default::default(),
@@ -540,7 +665,7 @@ fn pipelines(
                 compilation_options: Default::default(),
                 targets: &[Some(wgpu::ColorTargetState {
                     format,
-                    blend: None,
+                    blend,
                     write_mask: wgpu::ColorWrites::ALL,
                 })],
             }),
@@ -548,7 +673,25 @@ fn pipelines(
             cache: None,
         })
     };
-    [pipeline(Some(wgpu::Face::Back)), pipeline(None)]
+    let normal = wgpu::BlendState {
+        color: wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::SrcAlpha,
+            dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+            operation: wgpu::BlendOperation::Add,
+        },
+        alpha: wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
+            operation: wgpu::BlendOperation::Add,
+        },
+    };
+    Pipelines {
+        opaque: [pipeline(Some(wgpu::Face::Back), None), pipeline(None, None)],
+        blend: [
+            pipeline(Some(wgpu::Face::Back), Some(normal)),
+            pipeline(Some(wgpu::Face::Front), Some(normal)),
+        ],
+    }
 }
 
 /// Every texture a material may bind, on the GPU.
@@ -556,7 +699,9 @@ struct Textures {
     /// A white texel for "none".
     white: wgpu::TextureView,
     clamp: wgpu::Sampler,
-    /// The scene's textures (sRGB base colour / emissive) with their samplers.
+    /// The scene's textures (sRGB base colour / emissive, full mip chains).
+    textures: Vec<wgpu::Texture>,
+    /// Their views and samplers.
     scene: Vec<(wgpu::TextureView, wgpu::Sampler)>,
     /// The lightmap pages (sRGB PNG).
     lightmaps: Vec<wgpu::TextureView>,
@@ -571,22 +716,14 @@ impl Textures {
         // Textures: the scene's (sRGB base colour / emissive), the lightmap
         // pages (sRGB PNG), and a white texel for "none".
         let white = srgb_texture(device, queue, "white", 1, 1, &[255; 4]);
-        let clamp = sampler(device, Wrap::Clamp, Wrap::Clamp);
-        let scene: Vec<(wgpu::TextureView, wgpu::Sampler)> = model
-            .scene
-            .textures
+        let clamp = clamp_sampler(device);
+        let textures = scene_textures(device, queue, &model.scene.textures);
+        let scene: Vec<(wgpu::TextureView, wgpu::Sampler)> = textures
             .iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let view = srgb_texture(
-                    device,
-                    queue,
-                    &format!("texture{i}"),
-                    t.width,
-                    t.height,
-                    bytemuck::cast_slice(&t.rgba),
-                );
-                (view, sampler(device, t.wrap_s, t.wrap_t))
+            .zip(&model.scene.textures)
+            .map(|(gpu, t)| {
+                let view = gpu.create_view(&Default::default());
+                (view, texture_sampler(device, t))
             })
             .collect();
         let lightmaps: Vec<wgpu::TextureView> = model
@@ -606,7 +743,8 @@ impl Textures {
             .collect();
         // Debug maps (patches, validity; not colour data), and a
         // transparent texel for "none".
-        let no_debug = rgba8_texture(device, queue, "no debug map", (1, 1), &[0; 4], false);
+        let no_debug = rgba8_texture(device, queue, "no debug map", (1, 1), &[&[0; 4]], false)
+            .create_view(&Default::default());
         let debug: Vec<Option<wgpu::TextureView>> = model
             .debug_maps
             .iter()
@@ -618,15 +756,17 @@ impl Textures {
                         queue,
                         &format!("debug{i}"),
                         (d.width, d.height),
-                        &d.rgba,
+                        &[&d.rgba],
                         false,
                     )
+                    .create_view(&Default::default())
                 })
             })
             .collect();
         Textures {
             white,
             clamp,
+            textures,
             scene,
             lightmaps,
             no_debug,

@@ -8,13 +8,13 @@
 //! flattened into [`Instance`]s; primitives are triangulated (lists, strips,
 //! fans), degenerate triangles dropped and counted.
 
-use super::texture::{Texture, TextureRef, Wrap};
+use super::texture::{Filter, Filters, Texture, TextureRef, Wrap};
 use super::{
     Alpha, Camera, ImportStats, Instance, Light, LightKind, Material, Mesh, Scene, Specular,
 };
 use crate::error::{Error, Result};
 use base64::Engine as _;
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 use gltf::mesh::Mode;
 use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
@@ -174,7 +174,7 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
     // bytes of every image it names.
     let json = source_json(path, &bytes)?;
     let images = image_bytes(&ctx, &gltf.document, &buffers, &mut files)?;
-    let mut image_cache: HashMap<usize, u32> = HashMap::new();
+    let mut image_cache: HashMap<(usize, Option<usize>), u32> = HashMap::new();
     for material in gltf.document.materials() {
         let m = import_material(&ctx, &material, &buffers, &mut scene, &mut image_cache)?;
         scene.materials.push(m);
@@ -760,6 +760,8 @@ fn import_mesh(
     };
     let mut uv1: Vec<Vec2> = Vec::new();
     let mut all_have_uv1 = true;
+    let mut colors: Vec<Vec4> = Vec::new();
+    let mut any_colors = false;
     for prim in mesh.primitives() {
         let location = format!("meshes[{}].primitives[{}]", mesh.index(), prim.index());
         let mode = prim.mode();
@@ -779,8 +781,11 @@ fn import_mesh(
             normals,
             uv0,
             uv1: prim_uv1,
+            colors: prim_colors,
             indices,
-        } = read_primitive(ctx, &prim, buffers, &location)?;
+        } = read_primitive(ctx, &prim, buffers, &location, warnings)?;
+        any_colors |= prim_colors.is_some();
+        let color = |i: u32| prim_colors.as_ref().map_or(Vec4::ONE, |c| c[i as usize]);
         let vcount = positions.len();
         if let Some(problem) = malformed(mode, indices.len()) {
             stats.malformed_primitives += 1;
@@ -816,6 +821,7 @@ fn import_mesh(
                     out.normals.push(n);
                     out.uv0.push(uv0[i as usize]);
                     uv1.push(prim_uv1.as_ref().map_or(Vec2::ZERO, |u| u[i as usize]));
+                    colors.push(color(i));
                     out.vertex_source.push(i);
                 }
                 out.triangles.push([v, v + 1, v + 2]);
@@ -832,12 +838,16 @@ fn import_mesh(
                 .extend(normals.iter().map(|n| n.normalize_or(Vec3::Y)));
             out.uv0.extend_from_slice(&uv0);
             uv1.extend(prim_uv1.clone().unwrap_or_else(|| vec![Vec2::ZERO; vcount]));
+            colors.extend((0..vcount as u32).map(color));
             out.vertex_source.extend(0..vcount as u32);
         }
         all_have_uv1 &= prim_uv1.is_some();
     }
     if all_have_uv1 && !out.triangles.is_empty() {
         out.uv1 = Some(uv1);
+    }
+    if any_colors {
+        out.colors = Some(colors);
     }
     Ok(out)
 }
@@ -894,16 +904,20 @@ struct PrimitiveData {
     normals: Option<Vec<Vec3>>,
     uv0: Vec<Vec2>,
     uv1: Option<Vec<Vec2>>,
+    colors: Option<Vec<Vec4>>,
     indices: Vec<u32>,
 }
 
 /// Reads a primitive's attributes and indices: positions and normals
 /// finite, indices below the vertex count, every attribute the same count.
+/// `COLOR_0`, which the bake does not use, is read where it is valid and
+/// otherwise dropped with a warning.
 fn read_primitive(
     ctx: &Ctx,
     prim: &gltf::Primitive,
     buffers: &[Vec<u8>],
     location: &str,
+    warnings: &mut Vec<String>,
 ) -> Result<PrimitiveData> {
     let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
     let positions: Vec<Vec3> = reader
@@ -950,13 +964,48 @@ fn read_primitive(
     {
         return Err(ctx.invalid(location, "attributes have different counts"));
     }
+    let colors = read_colors(&reader, prim, location, vcount, warnings);
     Ok(PrimitiveData {
         positions,
         normals,
         uv0,
         uv1: prim_uv1,
+        colors,
         indices,
     })
+}
+
+/// A primitive's `COLOR_0` as linear RGBA (glTF 2.0 §3.7.2.1: float, or
+/// normalized unsigned byte or short; VEC3 or VEC4), None where it has
+/// none, and None with a warning where it is not one of those or has the
+/// wrong count.
+fn read_colors<'a, 's, F>(
+    reader: &gltf::mesh::Reader<'a, 's, F>,
+    prim: &gltf::Primitive,
+    location: &str,
+    vcount: usize,
+    warnings: &mut Vec<String>,
+) -> Option<Vec<Vec4>>
+where
+    F: Clone + Fn(gltf::Buffer<'a>) -> Option<&'s [u8]>,
+{
+    use gltf::accessor::{DataType as T, Dimensions as D};
+    let accessor = prim.get(&gltf::Semantic::Colors(0))?;
+    let typed = matches!(accessor.dimensions(), D::Vec3 | D::Vec4)
+        && matches!(accessor.data_type(), T::F32 | T::U8 | T::U16);
+    let colors: Option<Vec<Vec4>> = typed
+        .then(|| reader.read_colors(0))
+        .flatten()
+        .map(|c| c.into_rgba_f32().map(Vec4::from).collect());
+    match colors {
+        Some(c) if c.len() == vcount && c.iter().all(|v| v.is_finite()) => Some(c),
+        _ => {
+            warnings.push(format!(
+                "{location}.attributes.COLOR_0: not a valid colour accessor of {vcount} elements; ignored"
+            ));
+            None
+        }
+    }
 }
 
 /// What is wrong with a triangle primitive of `count` indices (or
@@ -1000,7 +1049,7 @@ fn import_material(
     material: &gltf::Material,
     buffers: &[Vec<u8>],
     scene: &mut Scene,
-    cache: &mut HashMap<usize, u32>,
+    cache: &mut HashMap<(usize, Option<usize>), u32>,
 ) -> Result<Material> {
     let index = material.index().unwrap_or(0);
     let location = format!("materials[{index}]");
@@ -1018,25 +1067,31 @@ fn import_material(
     let mut texture_ref =
         |info: Option<gltf::texture::Info>, what: &str| -> Result<Option<TextureRef>> {
             let Some(info) = info else { return Ok(None) };
-            let (offset, rotation, scale) = match info.texture_transform() {
+            let transform = info.texture_transform();
+            let (offset, rotation, scale) = match &transform {
                 Some(t) => (Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale())),
                 None => (Vec2::ZERO, 0.0, Vec2::ONE),
             };
-            if info.tex_coord() != 0 {
+            // KHR_texture_transform's texCoord overrides the texture info's.
+            let tex_coord = transform
+                .and_then(|t| t.tex_coord())
+                .unwrap_or(info.tex_coord());
+            if tex_coord != 0 {
                 scene.warnings.push(format!(
-                    "{location}.{what}: uses TEXCOORD_{}; sampled through TEXCOORD_0",
-                    info.tex_coord()
+                    "{location}.{what}: uses TEXCOORD_{tex_coord}; the bake samples it through TEXCOORD_0"
                 ));
             }
             let texture = info.texture();
-            let image_index = texture.source().index();
-            let slot = match cache.get(&image_index) {
+            // One decoded texture per image and sampler (as three.js's
+            // GLTFLoader caches them): the sampler sets wrap and filters.
+            let key = (texture.source().index(), texture.sampler().index());
+            let slot = match cache.get(&key) {
                 Some(&s) => s,
                 None => {
                     let img = decode_image(ctx, &texture, buffers)?;
                     let s = scene.textures.len() as u32;
                     scene.textures.push(img);
-                    cache.insert(image_index, s);
+                    cache.insert(key, s);
                     s
                 }
             };
@@ -1045,6 +1100,7 @@ fn import_material(
                 offset,
                 rotation,
                 scale,
+                tex_coord,
             }))
         };
     let albedo_texture = texture_ref(
@@ -1094,6 +1150,7 @@ fn import_material(
             },
             gltf::material::AlphaMode::Blend => Alpha::Mask { cutoff: 0.5 },
         },
+        blend: material.alpha_mode() == gltf::material::AlphaMode::Blend,
     })
 }
 
@@ -1141,7 +1198,29 @@ fn decode_image(ctx: &Ctx, texture: &gltf::Texture, buffers: &[Vec<u8>]) -> Resu
         rgba: decoded.pixels().map(|p| p.0).collect(),
         wrap_s: wrap(sampler.wrap_s()),
         wrap_t: wrap(sampler.wrap_t()),
+        filters: filters(&sampler),
     })
+}
+
+/// A glTF sampler's filters, absent ones as three.js's GLTFLoader sets
+/// them (`LINEAR`, `LINEAR_MIPMAP_LINEAR`; see [`Filters`]).
+fn filters(sampler: &gltf::texture::Sampler) -> Filters {
+    use gltf::texture::{MagFilter, MinFilter};
+    let mut f = Filters::default();
+    if sampler.mag_filter() == Some(MagFilter::Nearest) {
+        f.mag = Filter::Nearest;
+    }
+    if let Some(min) = sampler.min_filter() {
+        (f.min, f.mipmap) = match min {
+            MinFilter::Nearest => (Filter::Nearest, None),
+            MinFilter::Linear => (Filter::Linear, None),
+            MinFilter::NearestMipmapNearest => (Filter::Nearest, Some(Filter::Nearest)),
+            MinFilter::LinearMipmapNearest => (Filter::Linear, Some(Filter::Nearest)),
+            MinFilter::NearestMipmapLinear => (Filter::Nearest, Some(Filter::Linear)),
+            MinFilter::LinearMipmapLinear => (Filter::Linear, Some(Filter::Linear)),
+        };
+    }
+    f
 }
 
 /// The `gltf` crate unwraps a spot light's `spot` object: refuse its absence here.

@@ -9,8 +9,8 @@ mod gltf;
 pub mod texture;
 
 pub use self::gltf::{load, LoadOptions};
-use glam::{Mat3, Mat4, Vec2, Vec3};
-pub use texture::{Mips, Texture, TextureRef, Wrap};
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+pub use texture::{Filter, Filters, Mips, Texture, TextureRef, Wrap};
 
 /// A mesh in its local space: the triangles of all its (triangle) primitives
 /// concatenated. Degenerate triangles have already been removed.
@@ -28,6 +28,11 @@ pub struct Mesh {
     pub uv0: Vec<Vec2>,
     /// `TEXCOORD_1` when every primitive has one (used by `--uv existing`).
     pub uv1: Option<Vec<Vec2>>,
+    /// `COLOR_0` (linear RGBA; an RGB set gets alpha 1) when some primitive
+    /// has one, white for the vertices of those that do not. The bake
+    /// ignores it; the preview multiplies the base colour by it, as
+    /// three.js does (`color_fragment.glsl.js`).
+    pub colors: Option<Vec<Vec4>>,
     /// Triangles, counter-clockwise seen from the front.
     pub triangles: Vec<[u32; 3]>,
     /// Material index (into [`Scene::materials`]) per triangle.
@@ -103,6 +108,9 @@ pub struct Material {
     pub double_sided: bool,
     /// Cut-out mode.
     pub alpha: Alpha,
+    /// glTF `alphaMode` `BLEND`. The bake cuts such a material out at 0.5
+    /// (`alpha`); viewers, the preview included, blend it.
+    pub blend: bool,
     /// Perfectly specular response, traced by the path tracer's Whitted-style
     /// paths (the radiosity bake treats every surface as Lambertian).
     pub specular: Specular,
@@ -139,6 +147,7 @@ impl Material {
             emission_texture: None,
             double_sided: false,
             alpha: Alpha::Opaque,
+            blend: false,
             specular: Specular::None,
         }
     }
