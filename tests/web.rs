@@ -97,6 +97,15 @@ fn three_js_light_probe_matches_radbake() {
     }
 }
 
+/// Asserts that a finished command succeeded, showing its stderr if not.
+fn succeeded(run: &std::process::Output) {
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
 /// `radbake serve` on a free port, killed on drop.
 struct Served {
     child: std::process::Child,
@@ -143,11 +152,7 @@ fn viewer(port: u16, query: &str, out: &Path) -> Vec<Vec3> {
         .arg(out)
         .output()
         .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    succeeded(&run);
     let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(
         json["errors"],
@@ -177,11 +182,7 @@ fn preview(glb: &Path, camera: &str, size: &str, out: &Path) -> Vec<Vec3> {
         ])
         .output()
         .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    succeeded(&run);
     linear_pixels(out)
 }
 
@@ -245,11 +246,7 @@ fn viewer_page_matches_the_preview() {
             .args(extra)
             .output()
             .unwrap();
-        assert!(
-            run.status.success(),
-            "{}",
-            String::from_utf8_lossy(&run.stderr)
-        );
+        succeeded(&run);
         let glb = out.join(format!("{stem}.baked.glb"));
         let server = serve(&out);
         let query = format!(

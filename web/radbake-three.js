@@ -20,7 +20,22 @@
 
 import * as THREE from 'three';
 
-/** A GLTFLoader plugin for `MOZ_lightmap` as radbake writes it. */
+/**
+ * `MOZ_lightmap` read onto `materialParams` with the texture in
+ * `colorSpace`: `texCoord: 1` becomes texture.channel = 1 (uv1), the
+ * instance's atlas rectangle (`KHR_texture_transform`) the texture's
+ * transform, and `intensity` the lightMapIntensity.
+ */
+function assignLightmap(parser, materialIndex, materialParams, colorSpace) {
+  const def = parser.json.materials[materialIndex];
+  const ext = def.extensions && def.extensions.MOZ_lightmap;
+  if (!ext) return Promise.resolve();
+  const info = { index: ext.index, texCoord: ext.texCoord ?? 1, extensions: ext.extensions };
+  materialParams.lightMapIntensity = ext.intensity ?? 1;
+  return parser.assignTexture(materialParams, 'lightMap', info, colorSpace);
+}
+
+/** A GLTFLoader plugin for `MOZ_lightmap` as radbake writes it (sRGB). */
 export class RadbakeLightmapPlugin {
   constructor(parser) {
     this.parser = parser;
@@ -28,14 +43,7 @@ export class RadbakeLightmapPlugin {
   }
 
   extendMaterialParams(materialIndex, materialParams) {
-    const def = this.parser.json.materials[materialIndex];
-    const ext = def.extensions && def.extensions[this.name];
-    if (!ext) return Promise.resolve();
-    // `texCoord: 1` becomes texture.channel = 1 (uv1); KHR_texture_transform
-    // (the instance's atlas rectangle) becomes the texture's transform.
-    const info = { index: ext.index, texCoord: ext.texCoord ?? 1, extensions: ext.extensions };
-    materialParams.lightMapIntensity = ext.intensity ?? 1;
-    return this.parser.assignTexture(materialParams, 'lightMap', info, THREE.SRGBColorSpace);
+    return assignLightmap(this.parser, materialIndex, materialParams, THREE.SRGBColorSpace);
   }
 }
 
@@ -43,10 +51,9 @@ export class RadbakeLightmapPlugin {
  * The stock Hubs / ir-engine semantics for `MOZ_lightmap` (see
  * ../shared/ENGINES.md): the texture from `parser.getDependency('texture',
  * index)`, left NoColorSpace (bytes read as linear values), and
- * `lightMapIntensity = intensity` (× π for MeshBasicMaterial). Only for
- * checking what those loaders render; the atlas rectangle
- * (`KHR_texture_transform`) is applied as GLTFLoader does, so that only
- * the colour space and intensity differ.
+ * `lightMapIntensity = intensity`. Only for checking what those loaders
+ * render; the atlas rectangle (`KHR_texture_transform`) is applied as
+ * GLTFLoader does, so that only the colour space differs.
  */
 export class HubsLightmapPlugin {
   constructor(parser) {
@@ -55,12 +62,7 @@ export class HubsLightmapPlugin {
   }
 
   extendMaterialParams(materialIndex, materialParams) {
-    const def = this.parser.json.materials[materialIndex];
-    const ext = def.extensions && def.extensions[this.name];
-    if (!ext) return Promise.resolve();
-    const info = { index: ext.index, texCoord: ext.texCoord ?? 1, extensions: ext.extensions };
-    materialParams.lightMapIntensity = ext.intensity ?? 1;
-    return this.parser.assignTexture(materialParams, 'lightMap', info, THREE.NoColorSpace);
+    return assignLightmap(this.parser, materialIndex, materialParams, THREE.NoColorSpace);
   }
 }
 
