@@ -97,6 +97,15 @@ fn tone_map_aces(color: vec3<f32>) -> vec3<f32> {
     return clamp(aces_out * (a / b), vec3<f32>(0.0), vec3<f32>(1.0));
 }
 
+// The sRGB transfer function (IEC 61966-2-1) with three.js's constants
+// (sRGBTransferOETF in colorspace_pars_fragment.glsl.js, r187): the preview
+// encodes in the shader into a plain 8-bit target, as three.js does for its
+// canvas, so blending (alphaMode BLEND) mixes encoded values as there.
+fn srgb_encode(c: vec3<f32>) -> vec3<f32> {
+    let v = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
+    return select(pow(v, vec3<f32>(0.41666)) * 1.055 - vec3<f32>(0.055), v * 12.92, v <= vec3<f32>(0.0031308));
+}
+
 fn tone_map(color: vec3<f32>, exposure: f32, mode: u32) -> vec3<f32> {
     let c = max(color * exposure, vec3<f32>(0.0));
     if mode == 0u {

@@ -182,8 +182,11 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
             color = tone_map(lit, globals.exposure, globals.tone_map);
         }
     }
-    // The render target is sRGB: the hardware encodes (and blends BLEND
-    // materials in linear space). Opaque and masked materials write alpha 1.
-    let alpha = select(1.0, base.a, (flags & FLAG_BLEND) != 0u);
-    return vec4<f32>(color, alpha);
+    // The render target is plain 8-bit: encode here (three.js's
+    // colorspace_fragment), so BLEND materials blend encoded values, as in
+    // three.js's canvas. Opaque and masked materials write alpha 1, and so
+    // do the debug views (the web viewer draws them with opaque materials).
+    let lit_view = globals.view_mode == VIEW_LIT || globals.view_mode == VIEW_PROBES;
+    let alpha = select(1.0, base.a, (flags & FLAG_BLEND) != 0u && lit_view);
+    return vec4<f32>(srgb_encode(color), alpha);
 }

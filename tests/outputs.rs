@@ -121,7 +121,10 @@ fn png_encoding_decodes_to_the_exr() {
         .map(|i| {
             let r = &i["uv_rect"];
             let f = |k: usize| r[k].as_f64().unwrap();
-            ([f(0), f(1), f(2), f(3)], i["png_scale"].as_f64().unwrap() as f32)
+            (
+                [f(0), f(1), f(2), f(3)],
+                i["png_scale"].as_f64().unwrap() as f32,
+            )
         })
         .collect();
     let png = image::open(dir.join(page["png"].as_str().unwrap()))
@@ -155,7 +158,11 @@ fn png_encoding_decodes_to_the_exr() {
     assert_eq!(png.width() as usize, *w);
     // Rounding after a dither of ±½ code: under one code.
     assert!(worst < 1.0 + 1e-3, "PNG off the EXR by {worst} codes");
-    assert!(distinct.len() >= 8, "one scale per instance: {} scales", distinct.len());
+    assert!(
+        distinct.len() >= 8,
+        "one scale per instance: {} scales",
+        distinct.len()
+    );
 }
 
 /// Same inputs and settings: byte-identical lightmaps, .glb and manifest on

@@ -162,6 +162,16 @@ fn wgsl_struct_layouts_match_rust() {
     ] {
         assert_eq!(constant(name), naga::Literal::F32(value), "{name}");
     }
+    for (name, value) in [
+        ("FLAG_BASE_TEXTURE", gpu::FLAG_BASE_TEXTURE),
+        ("FLAG_EMISSIVE_TEXTURE", gpu::FLAG_EMISSIVE_TEXTURE),
+        ("FLAG_LIGHTMAP", gpu::FLAG_LIGHTMAP),
+        ("FLAG_BLEND", gpu::FLAG_BLEND),
+        ("FLAG_BASE_UV1", gpu::FLAG_BASE_UV1),
+        ("FLAG_EMISSIVE_UV1", gpu::FLAG_EMISSIVE_UV1),
+    ] {
+        assert_eq!(constant(name), naga::Literal::U32(value), "{name}");
+    }
 }
 
 #[test]
@@ -742,4 +752,659 @@ fn probes_view_draws_spheres_and_marks_invalid_probes() {
         .filter(|p| p[0] > 200 && p[1] < 30 && p[2] < 30)
         .count();
     assert_eq!(reds, 0);
+}
+
+// ---------------------------------------------------------------------------
+// Agreement with three.js r187 (issue #21): mipmaps, alpha modes, vertex
+// colours, texture coordinate sets, emission, double-sided lightmapped faces.
+// The scenes are small hand-written glTFs (quads, PNG data URIs, and where
+// a lightmap is needed a hand-written `MOZ_lightmap`).
+
+/// One quad of a material test scene: spanned from `origin` by `u` and `v`
+/// (facing u × v), with per-corner `TEXCOORD_0` and `TEXCOORD_1` (corner
+/// order (0,0), (1,0), (1,1), (0,1)), an optional `COLOR_0`, and its
+/// glTF material (JSON).
+struct TestQuad {
+    origin: [f32; 3],
+    u: [f32; 3],
+    v: [f32; 3],
+    uv0: [[f32; 2]; 4],
+    uv1: [[f32; 2]; 4],
+    color: Option<[f32; 4]>,
+    material: serde_json::Value,
+}
+
+impl TestQuad {
+    /// A quad with the same UV at every corner of both sets.
+    fn flat(origin: [f32; 3], u: [f32; 3], v: [f32; 3], uv0: [f32; 2], uv1: [f32; 2]) -> Self {
+        TestQuad {
+            origin,
+            u,
+            v,
+            uv0: [uv0; 4],
+            uv1: [uv1; 4],
+            color: None,
+            material: serde_json::json!({}),
+        }
+    }
+}
+
+/// A texture of a test scene: its pixels (RGBA8, RGB sRGB) and its glTF
+/// sampler (JSON; `null` for none).
+struct TestTexture {
+    image: image::RgbaImage,
+    sampler: serde_json::Value,
+}
+
+/// Appends a data-URI buffer, its view and an accessor of `count` elements
+/// of `kind` (floats) to `doc`; returns the accessor.
+fn append_floats(doc: &mut serde_json::Value, data: &[f32], count: usize, kind: &str) -> usize {
+    use base64::Engine as _;
+    let bytes: Vec<u8> = data.iter().flat_map(|f| f.to_le_bytes()).collect();
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bytes)
+    );
+    let push = |doc: &mut serde_json::Value, key: &str, v: serde_json::Value| {
+        let a = doc[key].as_array_mut().unwrap();
+        a.push(v);
+        a.len() - 1
+    };
+    let buffer = push(
+        doc,
+        "buffers",
+        serde_json::json!({"byteLength": bytes.len(), "uri": uri}),
+    );
+    let view = push(
+        doc,
+        "bufferViews",
+        serde_json::json!({"buffer": buffer, "byteLength": bytes.len()}),
+    );
+    push(
+        doc,
+        "accessors",
+        serde_json::json!({"bufferView": view, "componentType": 5126, "count": count, "type": kind}),
+    )
+}
+
+/// A PNG data URI of `img`.
+fn png_data_uri(img: &image::RgbaImage) -> String {
+    use base64::Engine as _;
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    format!(
+        "data:image/png;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&png)
+    )
+}
+
+/// Writes `dir/<name>.gltf`: a node per quad (each its own mesh and
+/// material), the textures (texture i = image i, with its sampler), and
+/// `extensionsUsed`; returns the path.
+fn material_scene(
+    dir: &Path,
+    name: &str,
+    quads: &[TestQuad],
+    textures: &[TestTexture],
+    extensions: &[&str],
+) -> PathBuf {
+    let mut b = GltfBuilder::default();
+    for (i, q) in quads.iter().enumerate() {
+        let (p, idx) = quad(q.origin, q.u, q.v);
+        let m = b.mesh(&p, &idx, None);
+        b.node(&format!("quad{i}"), m);
+    }
+    let mut doc = b.json();
+    for (i, q) in quads.iter().enumerate() {
+        let uv0 = append_floats(&mut doc, q.uv0.as_flattened(), 4, "VEC2");
+        let uv1 = append_floats(&mut doc, q.uv1.as_flattened(), 4, "VEC2");
+        let prim = &mut doc["meshes"][i]["primitives"][0];
+        prim["material"] = serde_json::json!(i);
+        prim["attributes"]["TEXCOORD_0"] = serde_json::json!(uv0);
+        prim["attributes"]["TEXCOORD_1"] = serde_json::json!(uv1);
+        if let Some(c) = q.color {
+            let colors = append_floats(&mut doc, &c.repeat(4), 4, "VEC4");
+            doc["meshes"][i]["primitives"][0]["attributes"]["COLOR_0"] = serde_json::json!(colors);
+        }
+    }
+    doc["materials"] = quads.iter().map(|q| q.material.clone()).collect();
+    let mut samplers = Vec::new();
+    let mut texs = Vec::new();
+    for (i, t) in textures.iter().enumerate() {
+        let mut tex = serde_json::json!({"source": i});
+        if !t.sampler.is_null() {
+            samplers.push(t.sampler.clone());
+            tex["sampler"] = serde_json::json!(samplers.len() - 1);
+        }
+        texs.push(tex);
+    }
+    let images: Vec<serde_json::Value> = textures
+        .iter()
+        .map(|t| serde_json::json!({"uri": png_data_uri(&t.image)}))
+        .collect();
+    doc["images"] = serde_json::json!(images);
+    doc["textures"] = serde_json::json!(texs);
+    doc["samplers"] = serde_json::json!(samplers);
+    doc["extensionsUsed"] = serde_json::json!(extensions);
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+/// A texture of `w` × `h` texels, texel (x, y) = `f(x, y)`.
+fn texture_of(w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 4]) -> image::RgbaImage {
+    image::RgbaImage::from_fn(w, h, |x, y| image::Rgba(f(x, y)))
+}
+
+/// glTF sampler JSON: nearest magnification and minification, no mipmaps.
+fn nearest() -> serde_json::Value {
+    serde_json::json!({"magFilter": 9728, "minFilter": 9728})
+}
+
+/// Linear RGB of pixel (x, y).
+fn linear_at(img: &image::RgbaImage, (x, y): (u32, u32)) -> Vec3 {
+    let p = img.get_pixel(x, y);
+    Vec3::new(
+        srgb_to_linear(p[0]),
+        srgb_to_linear(p[1]),
+        srgb_to_linear(p[2]),
+    )
+}
+
+/// The pixel of a `w` × `h` render by `render_at` (from `from` towards
+/// `at`, the preview's 50° field of view) that world point `p` falls on.
+fn pixel_of(p: Vec3, from: Vec3, at: Vec3, (w, h): (u32, u32)) -> (u32, u32) {
+    use radbake::preview::camera::Camera;
+    let c = Camera::look_at(from, at, 50f32.to_radians(), 1.0);
+    let clip = c.view_proj(w as f32 / h as f32) * p.extend(1.0);
+    let ndc = Vec2::new(clip.x, clip.y) / clip.w;
+    let x = ((ndc.x + 1.0) * 0.5 * w as f32).floor();
+    let y = ((1.0 - ndc.y) * 0.5 * h as f32).floor();
+    (
+        x.clamp(0.0, w as f32 - 1.0) as u32,
+        y.clamp(0.0, h as f32 - 1.0) as u32,
+    )
+}
+
+fn assert_close(got: Vec3, want: Vec3, tol: f32, what: &str) {
+    assert!(
+        (got - want).abs().max_element() <= tol,
+        "{what}: got {got}, want {want} (±{tol})"
+    );
+}
+
+/// Every base-colour and emissive texture is uploaded with its full mip
+/// chain (1 + ⌊log2 max(w, h)⌋ levels), so the GPU can filter trilinearly.
+#[test]
+fn textures_are_uploaded_with_full_mip_chains() {
+    let dir = temp_dir("preview-mip-levels");
+    let mut q = TestQuad::flat(
+        [-1.0, -1.0, 0.0],
+        [2.0, 0.0, 0.0],
+        [0.0, 2.0, 0.0],
+        [0.5; 2],
+        [0.5; 2],
+    );
+    q.material = serde_json::json!({
+        "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
+        "emissiveTexture": {"index": 1}, "emissiveFactor": [1.0, 1.0, 1.0]
+    });
+    let grey = |_, _| [90, 90, 90, 255];
+    let textures = [
+        TestTexture {
+            image: texture_of(64, 24, grey),
+            sampler: serde_json::Value::Null,
+        },
+        TestTexture {
+            image: texture_of(5, 3, grey),
+            sampler: serde_json::Value::Null,
+        },
+    ];
+    let gltf = material_scene(&dir, "mips", &[q], &textures, &[]);
+    let model = model::Model::load(&gltf).unwrap();
+    assert_eq!(model.scene.textures.len(), 2);
+    let (_, device, queue) = match radbake::preview::offscreen_device() {
+        Ok(d) => d,
+        Err(e) if e.is::<radbake::preview::NoAdapter>() => {
+            eprintln!("SKIPPED (no GPU or software adapter on this machine): {e}");
+            return;
+        }
+        Err(e) => panic!("{e:#}"),
+    };
+    let camera = radbake::preview::initial_camera(&model, &Default::default()).unwrap();
+    let r = radbake::preview::renderer::Renderer::new(
+        &device,
+        &queue,
+        wgpu::TextureFormat::Rgba8Unorm,
+        &model,
+        camera,
+        Default::default(),
+    );
+    // 64 × 24: 64, 32, …, 1 (7 levels); 5 × 3: 5, 2, 1 (3 levels).
+    assert_eq!(r.texture_mip_levels(), [7, 3]);
+}
+
+/// Mipmapping: a 400 m floor under a 64 × 64 one-texel checker (sRGB 40 and
+/// 240; 10 cm texels) seen at a grazing angle from 1 m up. Far away, where
+/// a pixel covers many texels, trilinear filtering gives the checker's
+/// linear mean (sRGB 178) in every pixel; level 0 alone (the preview
+/// before mipmaps) gave grain of 40s and 240s. Close by, the checker is
+/// still resolved (the mips do not blur what a pixel can show).
+#[test]
+fn distant_textured_floor_is_filtered_to_its_mean() {
+    let dir = temp_dir("preview-mip-floor");
+    let size = 400.0;
+    let h = size * 0.5;
+    let uv = |x: f32, z: f32| [x / 6.4, z / 6.4];
+    let q = TestQuad {
+        origin: [-h, 0.0, -h],
+        u: [0.0, 0.0, size],
+        v: [size, 0.0, 0.0],
+        uv0: [uv(-h, -h), uv(-h, h), uv(h, h), uv(h, -h)],
+        uv1: [[0.0; 2]; 4],
+        color: None,
+        material: serde_json::json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}),
+    };
+    let checker = texture_of(64, 64, |x, y| {
+        let v = if (x + y) % 2 == 0 { 40 } else { 240 };
+        [v, v, v, 255]
+    });
+    let textures = [TestTexture {
+        image: checker,
+        sampler: serde_json::Value::Null,
+    }];
+    let gltf = material_scene(&dir, "floor", &[q], &textures, &[]);
+    let png = dir.join("floor.png");
+    let Some(img) = render_at(
+        &gltf,
+        &png,
+        "albedo",
+        Vec3::new(0.0, 1.0, 190.0),
+        Vec3::new(0.0, -1.0, 170.0),
+    ) else {
+        return;
+    };
+    let (w, hgt) = img.dimensions();
+    // The horizon: the first row (from the top) where the floor shows.
+    let horizon = (0..hgt)
+        .find(|&y| img.get_pixel(w / 2, y)[0] > 0)
+        .expect("the floor is visible");
+    let stats = |rows: std::ops::Range<u32>| {
+        let v: Vec<f64> = rows
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| img.get_pixel(x, y)[1] as f64)
+            .collect();
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / v.len() as f64;
+        (mean, var.sqrt())
+    };
+    let want = 255.0 * srgb_linear_to_encoded(0.5 * (srgb_to_linear(40) + srgb_to_linear(240)));
+    let (far_mean, far_sd) = stats(horizon + 2..horizon + 22);
+    let (near_mean, near_sd) = stats(hgt - 6..hgt);
+    eprintln!(
+        "horizon row {horizon}: far mean {far_mean:.1} sd {far_sd:.2} (want {want:.1}); near mean {near_mean:.1} sd {near_sd:.1}"
+    );
+    assert!(
+        horizon > 10 && horizon + 22 < hgt - 6,
+        "horizon at row {horizon}"
+    );
+    assert!(
+        (far_mean - want).abs() < 4.0 && far_sd < 3.0,
+        "far floor: mean {far_mean:.1} (want {want:.1}), sd {far_sd:.2} (want < 3)"
+    );
+    assert!(
+        near_sd > 15.0,
+        "near floor: the checker is blurred away (sd {near_sd:.1})"
+    );
+}
+
+/// sRGB encoding of a linear value in [0, 1] (IEC 61966-2-1).
+fn srgb_linear_to_encoded(c: f32) -> f64 {
+    let e = if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    };
+    e as f64
+}
+
+/// Pixels at the centres of `points`, rendered (albedo or lit view, no
+/// tone map) from `from` towards `at`; None without an adapter.
+fn colours_at(gltf: &Path, view: &str, from: Vec3, at: Vec3, points: &[Vec3]) -> Option<Vec<Vec3>> {
+    let png = gltf.with_extension(format!("{view}.{}.png", from.z.signum()));
+    let img = render_at(gltf, &png, view, from, at)?;
+    Some(
+        points
+            .iter()
+            .map(|&p| linear_at(&img, pixel_of(p, from, at, img.dimensions())))
+            .collect(),
+    )
+}
+
+/// glTF `BLEND` is blended as three.js blends it on its canvas
+/// (`transparent: true`, `NormalBlending`): not cut out (alpha 0.4 is
+/// under the 0.5 the preview used to cut BLEND at), colour × α +
+/// destination × (1 − α) on sRGB-encoded values (three.js encodes in the
+/// shader), after the opaque objects, and back to front by object (so the
+/// result depends on the side it is seen from). Here two double-sided
+/// 40 %-opaque quads, red at z = 0 and blue at z = −1, seen from +Z over
+/// an opaque single-sided green quad at z = −2 (listed last, drawn first),
+/// and from −Z over the black background (the green quad's back face is
+/// culled).
+#[test]
+fn blend_materials_are_blended_back_to_front() {
+    let dir = temp_dir("preview-blend");
+    let mut quads = Vec::new();
+    for (z, colour) in [(0.0, [1.0, 0.0, 0.0]), (-1.0, [0.0, 0.0, 1.0])] {
+        let mut q = TestQuad::flat(
+            [-1.0, -1.0, z],
+            [2.0, 0.0, 0.0],
+            [0.0, 2.0, 0.0],
+            [0.0; 2],
+            [0.0; 2],
+        );
+        // Black base colour (no lightmap here): the lit view shows the
+        // emission, with the base colour's alpha.
+        q.material = serde_json::json!({
+            "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 0.4]},
+            "emissiveFactor": colour,
+            "alphaMode": "BLEND", "doubleSided": true
+        });
+        quads.push(q);
+    }
+    let mut green = TestQuad::flat(
+        [-2.0, -2.0, -2.0],
+        [4.0, 0.0, 0.0],
+        [0.0, 4.0, 0.0],
+        [0.0; 2],
+        [0.0; 2],
+    );
+    green.material = serde_json::json!({
+        "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0]},
+        "emissiveFactor": [0.0, 1.0, 0.0]
+    });
+    quads.push(green);
+    let gltf = material_scene(&dir, "blend", &quads, &[], &[]);
+    let model = model::Model::load(&gltf).unwrap();
+    assert!(model.materials[..2].iter().all(|m| m.blend) && !model.materials[2].blend);
+    let origins: Vec<bool> = model.batches.iter().map(|b| b.origin.is_some()).collect();
+    assert_eq!(
+        origins,
+        [false, true, true],
+        "opaque batches first, one per blended object"
+    );
+    let centre = [Vec3::new(0.0, 0.0, -0.5)];
+    let at = Vec3::new(0.0, 0.0, -0.5);
+    // Encoded values, compared in linear.
+    let decoded = |v: Vec3| {
+        v.to_array()
+            .map(|c| srgb_to_linear((c * 255.0).round() as u8))
+    };
+    // From +Z: green, then blue (far), then red: encoded (0.4, 0.6 × 0.6,
+    // 0.6 × 0.4).
+    let Some(front) = colours_at(&gltf, "lit", Vec3::new(0.0, 0.0, 6.0), at, &centre) else {
+        return;
+    };
+    let want = Vec3::from_array(decoded(Vec3::new(0.4, 0.36, 0.24)));
+    assert_close(front[0], want, 0.005, "seen from +Z");
+    // From −Z: red is the far one.
+    let back = colours_at(&gltf, "lit", Vec3::new(0.0, 0.0, -7.0), at, &centre).unwrap();
+    let want = Vec3::from_array(decoded(Vec3::new(0.24, 0.0, 0.4)));
+    assert_close(back[0], want, 0.005, "seen from -Z");
+}
+
+/// `COLOR_0` multiplies the base colour (three.js `color_fragment`: RGB
+/// and alpha), and `MASK` cuts out at `alphaCutoff` on the product
+/// (`alphatest_fragment`): quad 0 (COLOR_0 (0.5, 0.25, 1, 1) × factor
+/// (1, 1, 0.5)) shows (0.5, 0.25, 0.5); quad 1 (same colours, COLOR_0
+/// alpha 0.3, MASK at 0.5) is cut out; quad 2 (no COLOR_0) shows its factor.
+#[test]
+fn vertex_colours_multiply_base_colour_and_alpha() {
+    let dir = temp_dir("preview-colours");
+    let mut quads = Vec::new();
+    for (k, (alpha, mode)) in [(1.0, "OPAQUE"), (0.3, "MASK"), (1.0, "OPAQUE")]
+        .into_iter()
+        .enumerate()
+    {
+        let x = -3.0 + 2.2 * k as f32;
+        let mut q = TestQuad::flat(
+            [x, -1.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [0.0, 2.0, 0.0],
+            [0.0; 2],
+            [0.0; 2],
+        );
+        q.color = (k < 2).then_some([0.5, 0.25, 1.0, alpha]);
+        q.material = serde_json::json!({
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 0.5, 1.0]},
+            "alphaMode": mode
+        });
+        quads.push(q);
+    }
+    let gltf = material_scene(&dir, "colours", &quads, &[], &[]);
+    let model = model::Model::load(&gltf).unwrap();
+    assert!(model.scene.meshes[..2].iter().all(|m| m.colors.is_some()));
+    assert!(model.scene.meshes[2].colors.is_none());
+    let points: Vec<Vec3> = (0..3)
+        .map(|k| Vec3::new(-2.0 + 2.2 * k as f32, 0.0, 0.0))
+        .collect();
+    let Some(c) = colours_at(
+        &gltf,
+        "albedo",
+        Vec3::new(0.2, 0.0, 9.0),
+        Vec3::new(0.2, 0.0, 0.0),
+        &points,
+    ) else {
+        return;
+    };
+    assert_close(c[0], Vec3::new(0.5, 0.25, 0.5), 0.01, "COLOR_0 × factor");
+    assert_close(c[1], Vec3::ZERO, 0.0, "COLOR_0 alpha under the cutoff");
+    assert_close(c[2], Vec3::new(1.0, 1.0, 0.5), 0.01, "no COLOR_0");
+}
+
+/// Texture coordinate sets and transforms as three.js's GLTFLoader reads
+/// them, through a 2 × 2 texture of four colours sampled NEAREST (the
+/// sampler's filters are followed): `texCoord: 1` reads `TEXCOORD_1`
+/// (three.js `texture.channel = 1`); `KHR_texture_transform.texCoord`
+/// overrides the texture info's; a rotated transform is T·R·S (three.js
+/// sets `texture.matrix` so, not its own T·S·R).
+#[test]
+fn texture_coordinate_sets_and_transforms_follow_gltf() {
+    let dir = temp_dir("preview-texcoord");
+    // Texels: (0,0) red, (1,0) green, (0,1) blue, (1,1) white.
+    let colours = [
+        [255, 0, 0, 255],
+        [0, 255, 0, 255],
+        [0, 0, 255, 255],
+        [255; 4],
+    ];
+    let tex = texture_of(2, 2, |x, y| colours[(y * 2 + x) as usize]);
+    let base = |info: serde_json::Value| serde_json::json!({"pbrMetallicRoughness": {"baseColorTexture": info}});
+    // TEXCOORD_0 points at red, TEXCOORD_1 at green.
+    let (uv_red, uv_green) = ([0.25, 0.25], [0.75, 0.25]);
+    let transform = |t: serde_json::Value| serde_json::json!({"index": 0, "extensions": {"KHR_texture_transform": t}});
+    let materials = [
+        base(serde_json::json!({"index": 0, "texCoord": 1})),
+        base(transform(serde_json::json!({"texCoord": 1}))),
+        // uv' = T R S uv with S = (2, 1), rotation π/2: (v, −2u) =
+        // (0.25, −0.5) → (0.25, 0.5) wrapped: blue. T S R would give
+        // (0.5, −0.25) → green/white edge, and the other sense of rotation
+        // (−0.25, 0.5) → white.
+        base(transform(
+            serde_json::json!({"rotation": std::f32::consts::FRAC_PI_2, "scale": [2.0, 1.0]}),
+        )),
+    ];
+    let quads: Vec<TestQuad> = materials
+        .into_iter()
+        .enumerate()
+        .map(|(k, material)| {
+            let x = -3.0 + 2.2 * k as f32;
+            let mut q = TestQuad::flat(
+                [x, -1.0, 0.0],
+                [2.0, 0.0, 0.0],
+                [0.0, 2.0, 0.0],
+                uv_red,
+                uv_green,
+            );
+            q.material = material;
+            q
+        })
+        .collect();
+    let textures = [TestTexture {
+        image: tex,
+        sampler: nearest(),
+    }];
+    let gltf = material_scene(
+        &dir,
+        "texcoord",
+        &quads,
+        &textures,
+        &["KHR_texture_transform"],
+    );
+    let model = model::Model::load(&gltf).unwrap();
+    let sets: Vec<u32> = model.scene.materials[..3]
+        .iter()
+        .map(|m| m.albedo_texture.as_ref().unwrap().tex_coord)
+        .collect();
+    assert_eq!(sets, [1, 1, 0]);
+    let points: Vec<Vec3> = (0..3)
+        .map(|k| Vec3::new(-2.0 + 2.2 * k as f32, 0.0, 0.0))
+        .collect();
+    let Some(c) = colours_at(
+        &gltf,
+        "albedo",
+        Vec3::new(0.2, 0.0, 9.0),
+        Vec3::new(0.2, 0.0, 0.0),
+        &points,
+    ) else {
+        return;
+    };
+    assert_close(c[0], Vec3::new(0.0, 1.0, 0.0), 0.01, "texCoord 1");
+    assert_close(
+        c[1],
+        Vec3::new(0.0, 1.0, 0.0),
+        0.01,
+        "KHR_texture_transform.texCoord 1",
+    );
+    assert_close(c[2], Vec3::new(0.0, 0.0, 1.0), 0.01, "rotation: T·R·S");
+}
+
+/// Emission as three.js's Lambert material adds it: `emissiveFactor` ×
+/// `KHR_materials_emissive_strength` × the emissive texture (read through
+/// its own `texCoord`, here 1) on top of base colour × lightmap (none here,
+/// and no ambient or other light: black base colour shows emission alone).
+#[test]
+fn emission_is_factor_times_strength_times_texture() {
+    let dir = temp_dir("preview-emission");
+    let tex = texture_of(2, 1, |x, _| {
+        if x == 0 {
+            [128, 128, 128, 255]
+        } else {
+            [255, 0, 64, 255]
+        }
+    });
+    let mut q = TestQuad::flat(
+        [-1.0, -1.0, 0.0],
+        [2.0, 0.0, 0.0],
+        [0.0, 2.0, 0.0],
+        [0.25, 0.5],
+        [0.75, 0.5],
+    );
+    q.material = serde_json::json!({
+        "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0]},
+        "emissiveFactor": [1.0, 0.5, 1.0],
+        "emissiveTexture": {"index": 0, "texCoord": 1},
+        "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 0.5}}
+    });
+    let textures = [TestTexture {
+        image: tex,
+        sampler: nearest(),
+    }];
+    let gltf = material_scene(
+        &dir,
+        "emission",
+        &[q],
+        &textures,
+        &["KHR_materials_emissive_strength"],
+    );
+    let Some(c) = colours_at(
+        &gltf,
+        "lit",
+        Vec3::new(0.0, 0.0, 5.0),
+        Vec3::ZERO,
+        &[Vec3::ZERO],
+    ) else {
+        return;
+    };
+    let want = Vec3::new(0.5, 0.0, 0.5 * srgb_to_linear(64));
+    assert_close(c[0], want, 0.01, "emission");
+}
+
+/// A double-sided lightmapped face reads the same lightmap texel from both
+/// sides (three.js flips the normal for back faces, but the lightmap
+/// lookup is by `TEXCOORD_1` alone), while a single-sided one is culled
+/// from behind. Quad A (double-sided) and quad B (single-sided) share a
+/// 2 × 1 lightmap page (sRGB 200 | 60, `MOZ_lightmap.intensity` π, so the
+/// value is the decoded texel) across their width; base colour white.
+#[test]
+fn double_sided_lightmapped_faces_read_the_same_texel_from_both_sides() {
+    let dir = temp_dir("preview-two-sided");
+    let lightmap = texture_of(2, 1, |x, _| {
+        if x == 0 {
+            [200, 200, 200, 255]
+        } else {
+            [60, 60, 60, 255]
+        }
+    });
+    let mut quads = Vec::new();
+    for (x, double_sided) in [(-2.2, true), (0.2, false)] {
+        let mut q = TestQuad::flat(
+            [x, -1.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [0.0, 2.0, 0.0],
+            [0.0; 2],
+            [0.0; 2],
+        );
+        q.uv1 = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        q.material = serde_json::json!({
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0]},
+            "doubleSided": double_sided,
+            "extensions": {"MOZ_lightmap": {"index": 0, "texCoord": 1, "intensity": std::f32::consts::PI}}
+        });
+        quads.push(q);
+    }
+    let textures = [TestTexture {
+        image: lightmap,
+        // The sampler radbake writes for its pages (three.js then makes no
+        // mipmaps and clamps, as the preview samples every lightmap).
+        sampler: serde_json::json!({"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}),
+    }];
+    let gltf = material_scene(&dir, "two_sided", &quads, &textures, &["MOZ_lightmap"]);
+    // A's left and right quarters (lightmap texels 0 and 1), B's centre.
+    let points = [
+        Vec3::new(-1.7, 0.0, 0.0),
+        Vec3::new(-0.7, 0.0, 0.0),
+        Vec3::new(1.2, 0.0, 0.0),
+    ];
+    let at = Vec3::new(-0.5, 0.0, 0.0);
+    let Some(front) = colours_at(&gltf, "lit", Vec3::new(-0.5, 0.0, 8.0), at, &points) else {
+        return;
+    };
+    let back = colours_at(&gltf, "lit", Vec3::new(-0.5, 0.0, -8.0), at, &points).unwrap();
+    let (t0, t1) = (
+        Vec3::splat(srgb_to_linear(200)),
+        Vec3::splat(srgb_to_linear(60)),
+    );
+    assert_close(front[0], t0, 0.01, "A's texel 0 from the front");
+    assert_close(front[1], t1, 0.01, "A's texel 1 from the front");
+    assert_close(back[0], t0, 0.01, "A's texel 0 from behind");
+    assert_close(back[1], t1, 0.01, "A's texel 1 from behind");
+    assert_close(
+        front[2],
+        Vec3::splat(0.5 * (t0.x + t1.x)),
+        0.02,
+        "B from the front",
+    );
+    assert_close(back[2], Vec3::ZERO, 0.0, "B (single-sided) from behind");
 }

@@ -58,6 +58,7 @@ function lambert(m) {
     lightMapIntensity: m.lightMapIntensity ?? 1,
     alphaTest: m.alphaTest,
     transparent: m.transparent,
+    depthWrite: m.depthWrite,
     opacity: m.opacity,
     side: m.side,
     vertexColors: m.vertexColors,

@@ -143,8 +143,7 @@ pub fn run(args: &ServeArgs) -> Outcome {
             args.dir.display()
         ),
     }
-    let mut served = 0u64;
-    for request in server.incoming_requests() {
+    for (served, request) in (1u64..).zip(server.incoming_requests()) {
         let response = match resolve(&args.dir, request.url()) {
             Some((bytes, m)) => {
                 let header =
@@ -154,7 +153,6 @@ pub fn run(args: &ServeArgs) -> Outcome {
             None => tiny_http::Response::from_data(b"not found".to_vec()).with_status_code(404),
         };
         let _ = request.respond(response);
-        served += 1;
         if args.requests.is_some_and(|n| served >= n) {
             break;
         }

@@ -14,9 +14,9 @@
 //!   is kept; all buffers and images are packed into the GLB's one binary
 //!   chunk.
 
+use super::png8::EncodedPage;
 use crate::atlas::Atlas;
 use crate::error::{Error, Result};
-use super::png8::EncodedPage;
 use crate::scene::Scene;
 use serde_json::{json, Value};
 use std::collections::HashMap;

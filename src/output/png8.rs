@@ -161,7 +161,9 @@ mod tests {
     fn dithered_codes_average_to_the_value() {
         let v = 0.0123f32;
         let n = 20_000;
-        let mean_srgb: f32 = (0..n).map(|t| code(v, 1.0, dither(1, t, 0)) as f32).sum::<f32>()
+        let mean_srgb: f32 = (0..n)
+            .map(|t| code(v, 1.0, dither(1, t, 0)) as f32)
+            .sum::<f32>()
             / n as f32
             / 255.0;
         let want = linear_to_srgb(v);

@@ -36,7 +36,8 @@ pub struct Headless {
 pub fn render_headless(model: &Model, opts: &Options) -> Result<Headless> {
     let (adapter, device, queue) = offscreen_device()?;
     let camera = initial_camera(model, &opts.viewpoint)?;
-    let format = wgpu::TextureFormat::Rgba8UnormSrgb;
+    // Not sRGB: the shader encodes (see `Renderer::new`).
+    let format = wgpu::TextureFormat::Rgba8Unorm;
     let mut r = Renderer::new(&device, &queue, format, model, camera, opts.settings);
     let (w, h) = opts.size;
     r.resize(w, h);

@@ -10,9 +10,17 @@
 //! - [`camera`] has the orbit and fly cameras, [`window`] the winit loop.
 //! - [`gpu`] has every struct the shaders read (`shaders/*.wgsl`).
 //!
-//! Shading: outgoing radiance = base colour × lightmap + emissive (the
-//! lightmap holds irradiance / π), times 2^EV, tone mapped (ACES fitted),
-//! written to an sRGB target. Dynamic nodes (glTF
+//! Shading, as three.js r187 draws a baked `.glb` with Lambert materials
+//! and the lightmap as its only light (`meshlambert.glsl.js`): outgoing
+//! radiance = base colour (`baseColorFactor` × texture × `COLOR_0`) ×
+//! lightmap (irradiance / π) + emissive (`emissiveFactor` × strength ×
+//! texture), times 2^EV, tone mapped (ACES fitted, or none), sRGB-encoded
+//! in the shader. Base colour and emissive textures have full mip chains
+//! ([`mips`]) and are filtered trilinearly as the glTF sampler says;
+//! lightmaps are read at level 0 (three.js does not mipmap radbake's pages,
+//! whose sampler is `LINEAR`/`LINEAR`). `MASK` is cut out at
+//! `alphaCutoff`; `BLEND` objects are alpha blended after the opaque ones,
+//! back to front, on the encoded values, as in three.js's canvas. Dynamic nodes (glTF
 //! `extras.radbake.dynamic`, not baked) take the probes' irradiance / π in
 //! place of the lightmap: trilinear between the eight probes around each
 //! vertex (L2 SH, Ramamoorthi & Hanrahan 2001), evaluated on the CPU **per

@@ -264,7 +264,10 @@ fn preview_material(m: &crate::scene::Material, lm: Option<LightmapRef>) -> Prev
     if m.albedo_texture.as_ref().is_some_and(|t| t.tex_coord == 1) {
         flags |= gpu::FLAG_BASE_UV1;
     }
-    if m.emission_texture.as_ref().is_some_and(|t| t.tex_coord == 1) {
+    if m.emission_texture
+        .as_ref()
+        .is_some_and(|t| t.tex_coord == 1)
+    {
         flags |= gpu::FLAG_EMISSIVE_UV1;
     }
     let lm_rect = lm.map_or([0.0, 0.0, 1.0, 1.0], |l| {
@@ -497,7 +500,10 @@ impl Model {
         let mut batches = Vec::new();
         let groups = gathered.per_material.into_iter().enumerate();
         let opaque = groups.map(|(material, vs)| (material, None, vs));
-        let blended = gathered.blended.into_iter().map(|(m, o, vs)| (m, Some(o), vs));
+        let blended = gathered
+            .blended
+            .into_iter()
+            .map(|(m, o, vs)| (m, Some(o), vs));
         for (material, origin, vs) in opaque.chain(blended) {
             if vs.is_empty() {
                 continue;

@@ -1,6 +1,14 @@
 //! The one render path: [`Renderer::render`] draws the model into any
 //! colour target view (the window's surface texture or an offscreen
 //! texture), so the window and `--headless` produce the same pixels.
+//!
+//! As three.js's `WebGLRenderer` (r187): the target is cleared to black,
+//! opaque and masked batches are drawn first, then blended objects back to
+//! front by the projected depth of their bounding-box centre, without depth
+//! writes, double-sided ones back faces first; the shader writes
+//! sRGB-encoded values to a plain 8-bit target (three.js's
+//! `colorspace_fragment`), so blending mixes encoded values as on
+//! three.js's canvas.
 
 use super::camera::Camera;
 use super::gpu::{self, Globals, Vertex};
@@ -232,8 +240,10 @@ fn texture_sampler(device: &wgpu::Device, t: &Texture) -> wgpu::Sampler {
 }
 
 impl Renderer {
-    /// Uploads `model` and builds the pipeline for colour targets of `format`
-    /// (an sRGB format: the shader writes linear values).
+    /// Uploads `model` and builds the pipeline for colour targets of `format`,
+    /// a plain (not sRGB) 8-bit format: the shader writes sRGB-encoded
+    /// values itself, as three.js's `colorspace_fragment` does for its
+    /// canvas, so blended materials blend the encoded values as there.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -331,7 +341,7 @@ impl Renderer {
         order.into_iter().map(|(i, _)| i).collect()
     }
 
-    /// The colour format the pipeline was built for.
+    /// The colour format the pipeline was built for (not sRGB: the shader encodes).
     pub fn format(&self) -> wgpu::TextureFormat {
         self.format
     }

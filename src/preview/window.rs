@@ -75,7 +75,8 @@ impl App {
             .get_default_config(&adapter, size.width.max(1), size.height.max(1))
             .ok_or_else(|| anyhow!("the adapter cannot present to this window"))?;
         let caps = surface.get_capabilities(&adapter);
-        // Prefer an sRGB format; otherwise view the surface through its sRGB twin.
+        // Prefer an sRGB surface (its content is sRGB-encoded), drawn through
+        // its plain twin: the shader encodes, as three.js's does.
         let format = caps
             .formats
             .iter()
@@ -83,7 +84,7 @@ impl App {
             .find(|f| f.is_srgb())
             .unwrap_or(config.format);
         config.format = format;
-        let view_format = format.add_srgb_suffix();
+        let view_format = format.remove_srgb_suffix();
         if view_format != format {
             config.view_formats = vec![view_format];
         }

@@ -1064,45 +1064,46 @@ fn import_material(
     if values.clone().any(|v| !v.is_finite()) || values.clone().any(|&v| v < 0.0) {
         return Err(ctx.invalid(&location, "colour factors must be finite and non-negative"));
     }
-    let mut texture_ref =
-        |info: Option<gltf::texture::Info>, what: &str| -> Result<Option<TextureRef>> {
-            let Some(info) = info else { return Ok(None) };
-            let transform = info.texture_transform();
-            let (offset, rotation, scale) = match &transform {
-                Some(t) => (Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale())),
-                None => (Vec2::ZERO, 0.0, Vec2::ONE),
-            };
-            // KHR_texture_transform's texCoord overrides the texture info's.
-            let tex_coord = transform
-                .and_then(|t| t.tex_coord())
-                .unwrap_or(info.tex_coord());
-            if tex_coord != 0 {
-                scene.warnings.push(format!(
+    let mut texture_ref = |info: Option<gltf::texture::Info>,
+                           what: &str|
+     -> Result<Option<TextureRef>> {
+        let Some(info) = info else { return Ok(None) };
+        let transform = info.texture_transform();
+        let (offset, rotation, scale) = match &transform {
+            Some(t) => (Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale())),
+            None => (Vec2::ZERO, 0.0, Vec2::ONE),
+        };
+        // KHR_texture_transform's texCoord overrides the texture info's.
+        let tex_coord = transform
+            .and_then(|t| t.tex_coord())
+            .unwrap_or(info.tex_coord());
+        if tex_coord != 0 {
+            scene.warnings.push(format!(
                     "{location}.{what}: uses TEXCOORD_{tex_coord}; the bake samples it through TEXCOORD_0"
                 ));
+        }
+        let texture = info.texture();
+        // One decoded texture per image and sampler (as three.js's
+        // GLTFLoader caches them): the sampler sets wrap and filters.
+        let key = (texture.source().index(), texture.sampler().index());
+        let slot = match cache.get(&key) {
+            Some(&s) => s,
+            None => {
+                let img = decode_image(ctx, &texture, buffers)?;
+                let s = scene.textures.len() as u32;
+                scene.textures.push(img);
+                cache.insert(key, s);
+                s
             }
-            let texture = info.texture();
-            // One decoded texture per image and sampler (as three.js's
-            // GLTFLoader caches them): the sampler sets wrap and filters.
-            let key = (texture.source().index(), texture.sampler().index());
-            let slot = match cache.get(&key) {
-                Some(&s) => s,
-                None => {
-                    let img = decode_image(ctx, &texture, buffers)?;
-                    let s = scene.textures.len() as u32;
-                    scene.textures.push(img);
-                    cache.insert(key, s);
-                    s
-                }
-            };
-            Ok(Some(TextureRef {
-                texture: slot,
-                offset,
-                rotation,
-                scale,
-                tex_coord,
-            }))
         };
+        Ok(Some(TextureRef {
+            texture: slot,
+            offset,
+            rotation,
+            scale,
+            tex_coord,
+        }))
+    };
     let albedo_texture = texture_ref(
         pbr.base_color_texture(),
         "pbrMetallicRoughness.baseColorTexture",
