@@ -209,24 +209,112 @@ fn agreement(a: &[Vec3], b: &[Vec3]) -> (f64, f64) {
     (sa / sb, d[d.len() * 95 / 100])
 }
 
+/// A textured scene with what real levels use: a floor whose checker
+/// texture has a `KHR_texture_transform` (offset, rotation, scale), and in
+/// front of it an alpha-MASK fence (a checker of holes, double-sided), lit
+/// by a point light and seen from a glTF camera `cam`.
+fn masked_scene(dir: &Path) -> std::path::PathBuf {
+    let mut b = common::GltfBuilder::default();
+    let quad_uv = |b: &mut common::GltfBuilder, p: [[f32; 3]; 4], material: usize, name: &str| {
+        let pos = b.vec3(&p);
+        let uv = b.vec2(&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
+        let idx = b.indices(&[0, 1, 2, 0, 2, 3]);
+        b.meshes.push(serde_json::json!({"primitives": [{"attributes": {"POSITION": pos, "TEXCOORD_0": uv}, "indices": idx, "material": material}]}));
+        let m = b.meshes.len() - 1;
+        b.node(name, m);
+    };
+    b.materials.push(serde_json::json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0,
+        "extensions": {"KHR_texture_transform": {"offset": [0.1, 0.2], "rotation": 0.4, "scale": [3.0, 2.0]}}},
+        "metallicFactor": 0.0}}));
+    b.materials.push(
+        serde_json::json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 1},
+        "baseColorFactor": [0.9, 0.6, 0.3, 1.0], "metallicFactor": 0.0},
+        "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true}),
+    );
+    quad_uv(
+        &mut b,
+        [
+            [-2.0, 0.0, 2.0],
+            [2.0, 0.0, 2.0],
+            [2.0, 0.0, -2.0],
+            [-2.0, 0.0, -2.0],
+        ],
+        0,
+        "floor",
+    );
+    quad_uv(
+        &mut b,
+        [
+            [-1.0, 0.2, 0.5],
+            [1.0, 0.2, 0.5],
+            [1.0, 1.2, 0.5],
+            [-1.0, 1.2, 0.5],
+        ],
+        1,
+        "fence",
+    );
+    let mut doc = b.json();
+    let checker = |x: u32, y: u32| (x / 8 + y / 8) % 2 == 0;
+    let colours = image::RgbaImage::from_fn(64, 64, |x, y| {
+        if checker(x, y) {
+            image::Rgba([230, 220, 200, 255])
+        } else {
+            image::Rgba([60, 90, 140, 255])
+        }
+    });
+    let holes = image::RgbaImage::from_fn(64, 64, |x, y| {
+        image::Rgba([255, 255, 255, if checker(x, y) { 255 } else { 0 }])
+    });
+    for (name, img) in [("colours.png", colours), ("holes.png", holes)] {
+        img.save(dir.join(name)).unwrap();
+    }
+    doc["images"] = serde_json::json!([{"uri": "colours.png"}, {"uri": "holes.png"}]);
+    doc["textures"] = serde_json::json!([{"source": 0}, {"source": 1}]);
+    doc["extensionsUsed"] = serde_json::json!(["KHR_lights_punctual", "KHR_texture_transform"]);
+    doc["extensions"] = serde_json::json!({"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 4.0}]}});
+    doc["cameras"] = serde_json::json!([{"name": "cam", "type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.05, "zfar": 50.0}}]);
+    let look = glam::Quat::from_rotation_x(-0.35);
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    nodes.push(serde_json::json!({"name": "bulb", "translation": [0.3, 1.8, 1.2], "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+    nodes.push(serde_json::json!({"name": "cam", "camera": 0, "translation": [0.0, 1.4, 3.2], "rotation": look.to_array()}));
+    let n = nodes.len();
+    doc["scenes"][0]["nodes"] = serde_json::json!((0..n).collect::<Vec<_>>());
+    let path = dir.join("masked.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
 /// The viewer page (three.js, radbake's plugin) and `radbake preview`
 /// render the same bake from the same glTF camera, no tone mapping: mean
 /// linear radiance within 2 %, 95th-percentile per-pixel difference within
-/// 5 %. The Cornell box, and the breakfast room (textured, from
-/// `scenes/real`).
+/// 5 %. The Cornell box, the breakfast room (textured, from
+/// `scenes/real`), and a masked, texture-transformed scene.
 #[test]
 #[ignore = "needs tests/web/node_modules and Chromium (CI runs it)"]
 fn viewer_page_matches_the_preview() {
     let cases = [
         (
-            "cornell_box.gltf",
+            scene_path("cornell_box.gltf").to_str().unwrap().to_owned(),
             "cornell_box",
             "camera",
             "400x400",
             vec![],
         ),
         (
-            "real/breakfast_room/BreakfastRoom.lit.gltf",
+            masked_scene(&temp_dir("web-masked-src"))
+                .to_str()
+                .unwrap()
+                .to_owned(),
+            "masked",
+            "cam",
+            "400x300",
+            vec!["--texels-per-meter", "32"],
+        ),
+        (
+            scene_path("real/breakfast_room/BreakfastRoom.lit.gltf")
+                .to_str()
+                .unwrap()
+                .to_owned(),
             "BreakfastRoom.lit",
             "CameraMain",
             "480x320",
@@ -236,13 +324,7 @@ fn viewer_page_matches_the_preview() {
     for (scene, stem, camera, size, extra) in cases {
         let out = temp_dir(&format!("web-viewer-{stem}"));
         let run = Command::new(env!("CARGO_BIN_EXE_radbake"))
-            .args([
-                "bake",
-                scene_path(scene).to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "-q",
-            ])
+            .args(["bake", &scene, "--out", out.to_str().unwrap(), "-q"])
             .args(extra)
             .output()
             .unwrap();

@@ -79,6 +79,20 @@ impl GltfBuilder {
         self.accessors.len() - 1
     }
 
+    /// A VEC2 float accessor (texture coordinates).
+    pub fn vec2(&mut self, data: &[[f32; 2]]) -> usize {
+        let bytes: Vec<u8> = data
+            .iter()
+            .flatten()
+            .flat_map(|f| f.to_le_bytes())
+            .collect();
+        let view = self.push_view(&bytes, 34962);
+        self.accessors.push(
+            json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "VEC2"}),
+        );
+        self.accessors.len() - 1
+    }
+
     /// A SCALAR float accessor with min/max (animation inputs).
     pub fn scalars(&mut self, data: &[f32]) -> usize {
         let bytes: Vec<u8> = data.iter().flat_map(|f| f.to_le_bytes()).collect();
