@@ -77,6 +77,16 @@ pub enum DirectionalMode {
     Sh,
 }
 
+/// The HDR lightmap pages written as KTX2 (what Bevy loads).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Ktx2Mode {
+    /// `lightmap_<page>.ktx2` in `E5B9G9R9_UFLOAT_PACK32`, uncompressed.
+    Rgb9e5,
+    /// No KTX2 pages.
+    Off,
+}
+
 /// How texel values are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -173,6 +183,8 @@ pub struct BakeConfig {
     pub backface_tolerance: f32,
     /// Edge-aware à-trous filtering of the gathered indirect light.
     pub denoise: bool,
+    /// HDR lightmap pages as KTX2 (`lightmap_<page>.ktx2`).
+    pub ktx2: Ktx2Mode,
     /// Bake light probes for dynamic objects ([`crate::probes`]).
     pub probes: bool,
     /// Probe spacing in metres (a `probe_volume` node may set its own).
@@ -239,6 +251,7 @@ impl BakeConfig {
             burial_planes: true,
             backface_tolerance: 0.5,
             denoise: true,
+            ktx2: Ktx2Mode::Rgb9e5,
             probes: true,
             probe_spacing: 1.0,
             probe_budget: 16_384,

@@ -421,3 +421,51 @@ fn animations_and_extras_survive() {
     let t1 = f32::from_le_bytes(bin[off + 4..off + 8].try_into().unwrap());
     assert_eq!(t1, 1.0);
 }
+
+/// `lightmap_<page>.ktx2` (RGB9E5, for Bevy) read back with the `ktx2`
+/// crate: a 2D image of the page's size whose decoded texels are the EXR's
+/// within RGB9E5's quantisation (half a step of the shared exponent: at
+/// most the texel's largest channel / 512). `--ktx2 off` writes none.
+#[test]
+fn ktx2_pages_decode_to_the_exr() {
+    let dir = temp_dir("outputs-ktx2");
+    bake_cornell(&dir, &[], None);
+    let manifest = json(&dir.join("manifest.json"));
+    let name = manifest["pages"][0]["ktx2"].as_str().unwrap().to_owned();
+    let bytes = std::fs::read(dir.join(&name)).unwrap();
+    let reader = ktx2::Reader::new(&bytes[..]).unwrap();
+    let h = reader.header();
+    assert_eq!(h.format, Some(ktx2::Format::E5B9G9R9_UFLOAT_PACK32));
+    assert_eq!(h.pixel_depth, 0, "a 2D texture");
+    let level = reader.levels().next().unwrap();
+    let exr = exr::prelude::read_first_rgba_layer_from_file(
+        dir.join("lightmap_0.exr"),
+        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
+        |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .unwrap();
+    let (w, px) = &exr.layer_data.channel_data.pixels;
+    assert_eq!(h.pixel_width as usize, *w);
+    assert_eq!(level.data.len(), px.len() * 4);
+    let mut worst = 0.0f32;
+    for (chunk, want) in level.data.chunks_exact(4).zip(px) {
+        // The Vulkan specification's decode, written here again.
+        let p = u32::from_le_bytes(chunk.try_into().unwrap());
+        let scale = 2f32.powi((p >> 27) as i32 - 15 - 9);
+        let got = [p & 0x1ff, (p >> 9) & 0x1ff, (p >> 18) & 0x1ff].map(|m| m as f32 * scale);
+        let peak = want.iter().cloned().fold(0.0f32, f32::max);
+        for (g, e) in got.iter().zip(want) {
+            worst = worst.max((g - e).abs() / (peak / 512.0).max(1e-12));
+        }
+    }
+    assert!(
+        worst <= 1.0 + 1e-3,
+        "RGB9E5 off the EXR by {worst} × max/512"
+    );
+    let off = temp_dir("outputs-ktx2-off");
+    bake_cornell(&off, &["--ktx2", "off"], None);
+    assert!(!off.join("lightmap_0.ktx2").exists());
+    assert!(json(&off.join("manifest.json"))["pages"][0]["ktx2"].is_null());
+}

@@ -96,6 +96,9 @@ pub struct BakeArgs {
     /// Final-gather rays per texel; 0 turns the final gather off [default: 128].
     #[arg(long)]
     pub final_gather: Option<u32>,
+    /// HDR lightmap pages as KTX2 for Bevy: `rgb9e5` (lightmap_<page>.ktx2) or `off` [default: rgb9e5].
+    #[arg(long, value_enum)]
+    pub ktx2: Option<radbake::config::Ktx2Mode>,
     /// Light probes for dynamic objects: on or off [default: on].
     #[arg(long, value_parser = parse_on_off, value_name = "on|off")]
     pub probes: Option<bool>,
@@ -210,6 +213,7 @@ impl BakeArgs {
             emitters,
             final_gather,
             gather_threshold,
+            ktx2,
             probes,
             probe_spacing,
             probe_budget,

@@ -4,6 +4,7 @@
 //! leaves a half-written file where a good one was.
 
 pub mod baked;
+pub mod ktx2;
 pub mod png8;
 pub mod probes;
 
@@ -321,7 +322,19 @@ pub fn write_engine_outputs(
         let name = format!("lightmap_{page}_srgb.png");
         write_bytes_atomic(&out_dir.join(&name), &e.png)?;
         written.push(out_dir.join(&name));
+        let ktx2 = (bake.config.ktx2 == crate::config::Ktx2Mode::Rgb9e5)
+            .then(|| format!("lightmap_{page}.ktx2"));
+        if let Some(k) = &ktx2 {
+            let texels: Vec<u32> = lightmaps.pages[page]
+                .iter()
+                .map(|v| ktx2::rgb9e5(*v))
+                .collect();
+            let bytes = ktx2::ktx2_rgb9e5([lightmaps.width, lightmaps.height, 0], &texels);
+            write_bytes_atomic(&out_dir.join(k), &bytes)?;
+            written.push(out_dir.join(k));
+        }
         pages.push(serde_json::json!({
+            "ktx2": ktx2,
             "page": page,
             "exr": format!("lightmap_{page}.exr"),
             "png": name,

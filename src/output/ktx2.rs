@@ -1,0 +1,152 @@
+//! KTX 2.0 files (Khronos, "KTX File Format Specification 2.0") of
+//! uncompressed `E5B9G9R9_UFLOAT_PACK32` images: Bevy's irradiance volumes
+//! ([`super::probes`]) and the HDR lightmap pages Bevy loads. The container
+//! is small enough to write by hand (the `ktx2` crate only reads); the
+//! tests read it back with that crate.
+
+/// `VK_FORMAT_E5B9G9R9_UFLOAT_PACK32`.
+use glam::Vec3;
+
+const VK_FORMAT_E5B9G9R9_UFLOAT_PACK32: u32 = 123;
+
+/// Packs linear RGB into RGB9E5 as the Vulkan specification's
+/// "Shared Exponent" section (from `EXT_texture_shared_exponent`) defines:
+/// N = 9 mantissa bits, bias B = 15, E_max = 31; negative and NaN values
+/// become 0, values above the largest representable clamp to it.
+pub fn rgb9e5(c: Vec3) -> u32 {
+    const N: i32 = 9;
+    const B: i32 = 15;
+    let max = ((1 << N) - 1) as f32 / (1 << N) as f32 * 2f32.powi(31 - B);
+    let clamp = |v: f32| if v > 0.0 { v.min(max) } else { 0.0 };
+    let (r, g, b) = (clamp(c.x), clamp(c.y), clamp(c.z));
+    let maxc = r.max(g).max(b);
+    let mut exp = (-B - 1).max(maxc.log2().floor() as i32) + 1 + B;
+    if maxc == 0.0 {
+        exp = 0;
+    }
+    let scale = |e: i32| 2f32.powi(e - B - N);
+    let maxs = (maxc / scale(exp) + 0.5).floor() as i32;
+    if maxs == 1 << N {
+        exp += 1;
+    }
+    let q = |v: f32| ((v / scale(exp) + 0.5).floor() as u32).min((1 << N) - 1);
+    q(r) | q(g) << 9 | q(b) << 18 | (exp as u32) << 27
+}
+
+/// A KTX2 file of one uncompressed image in RGB9E5 (`texels` x fastest,
+/// then y, then z): 2D when `size[2]` is 0 (KTX2's `pixelDepth` for a 2D
+/// image), 3D otherwise. The container follows the KTX 2.0 specification; its
+/// data format descriptor is the Khronos basic descriptor for this format
+/// (six samples: a 9-bit mantissa and the shared 5-bit exponent per
+/// channel), word for word as in Bevy's own `Example.vxgi.ktx2`.
+pub fn ktx2_rgb9e5(size: [u32; 3], texels: &[u32]) -> Vec<u8> {
+    assert_eq!(texels.len(), (size[0] * size[1] * size[2].max(1)) as usize);
+    let mut dfd: Vec<u32> = vec![
+        0,                       // total size, set below
+        0,                       // vendor Khronos, descriptor type basic
+        2 | (24 + 6 * 16) << 16, // version 2, block size
+        1 | 1 << 8 | 1 << 16,    // model RGBSDA, primaries BT.709, linear
+        0,                       // texel block dimensions 1×1×1×1
+        4,                       // bytes per plane 0
+        0,
+    ];
+    for ch in 0..3u32 {
+        // Mantissa: 9 bits at 9·ch; lower 0, upper 8448 (0x2100), as
+        // Khronos's dfdutils write it.
+        dfd.extend([(9 * ch) | 8 << 16 | ch << 24, 0, 0, 0x2100]);
+        // Shared exponent: 5 bits at 27, qualifier EXPONENT (0x20).
+        dfd.extend([27 | 4 << 16 | (ch | 0x20) << 24, 0, 15, 31]);
+    }
+    dfd[0] = (dfd.len() * 4) as u32;
+    let header_len = 80 + 24; // header + index, one level
+    let dfd_off = header_len as u32;
+    let dfd_len = dfd[0];
+    let data_off = (dfd_off + dfd_len) as u64;
+    let data_len = (texels.len() * 4) as u64;
+    let mut out = Vec::with_capacity(data_off as usize + data_len as usize);
+    out.extend([
+        0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A,
+    ]);
+    for w in [
+        VK_FORMAT_E5B9G9R9_UFLOAT_PACK32,
+        4, // type size
+        size[0],
+        size[1],
+        size[2],
+        0, // layers
+        1, // faces
+        1, // levels
+        0, // no supercompression
+        dfd_off,
+        dfd_len,
+        0, // no key/value data
+        0,
+    ] {
+        out.extend(w.to_le_bytes());
+    }
+    out.extend(0u64.to_le_bytes()); // no supercompression global data
+    out.extend(0u64.to_le_bytes());
+    for v in [data_off, data_len, data_len] {
+        out.extend(v.to_le_bytes());
+    }
+    for w in dfd {
+        out.extend(w.to_le_bytes());
+    }
+    for t in texels {
+        out.extend(t.to_le_bytes());
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The specification's decode, value = mantissa × 2^(e − B − N).
+    fn decode(p: u32) -> Vec3 {
+        let e = (p >> 27) as i32;
+        let s = 2f32.powi(e - 15 - 9);
+        Vec3::new(
+            (p & 511) as f32 * s,
+            ((p >> 9) & 511) as f32 * s,
+            ((p >> 18) & 511) as f32 * s,
+        )
+    }
+
+    #[test]
+    fn rgb9e5_round_trips_within_its_quantisation() {
+        for c in [
+            Vec3::new(2.0, 2.0, 2.0),
+            Vec3::new(0.013, 0.5, 7.25),
+            Vec3::new(1e-6, 0.0, 3e-3),
+            Vec3::new(60000.0, 1.0, 0.0),
+        ] {
+            let d = decode(rgb9e5(c));
+            // Half a step of the shared exponent: ≤ max channel / 2⁹.
+            let bound = c.max_element() / 512.0 + 1e-9;
+            assert!((d - c).abs().max_element() <= bound, "{c} -> {d}");
+        }
+        assert_eq!(decode(rgb9e5(Vec3::splat(-1.0))), Vec3::ZERO);
+        assert_eq!(decode(rgb9e5(Vec3::splat(2.0))), Vec3::splat(2.0));
+    }
+
+    #[test]
+    fn ktx2_header_is_as_bevy_ships_it() {
+        let bytes = ktx2_rgb9e5([2, 4, 3], &[0; 24]);
+        assert_eq!(&bytes[..12], b"\xabKTX 20\xbb\r\n\x1a\n");
+        let word = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
+        assert_eq!(word(12), 123);
+        assert_eq!((word(20), word(24), word(28)), (2, 4, 3));
+        assert_eq!(word(48), 104); // DFD right after the level index
+        assert_eq!(word(52), 124);
+        assert_eq!(bytes.len(), 104 + 124 + 24 * 4);
+        // The DFD of Bevy 0.19's assets/irradiance_volumes/Example.vxgi.ktx2.
+        let bevy: [u32; 31] = [
+            0x7c, 0x0, 0x780002, 0x10101, 0x0, 0x4, 0x0, 0x80000, 0x0, 0x0, 0x2100, 0x2004001b,
+            0x0, 0xf, 0x1f, 0x1080009, 0x0, 0x0, 0x2100, 0x2104001b, 0x0, 0xf, 0x1f, 0x2080012,
+            0x0, 0x0, 0x2100, 0x2204001b, 0x0, 0xf, 0x1f,
+        ];
+        let dfd: Vec<u32> = (0..31).map(|k| word(104 + 4 * k)).collect();
+        assert_eq!(dfd, bevy);
+    }
+}
