@@ -130,15 +130,7 @@ fn png_encoding_decodes_to_the_exr() {
     let png = image::open(dir.join(page["png"].as_str().unwrap()))
         .unwrap()
         .to_rgb8();
-    let exr = exr::prelude::read_first_rgba_layer_from_file(
-        dir.join("lightmap_0.exr"),
-        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
-        |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * *w + pos.x()] = [r, g, b];
-        },
-    )
-    .unwrap();
-    let (w, px) = &exr.layer_data.channel_data.pixels;
+    let (w, px) = &read_exr(&dir.join("lightmap_0.exr"));
     let (pw, ph) = (png.width() as f64, png.height() as f64);
     let mut worst = 0.0f32;
     let mut distinct = std::collections::BTreeSet::new();
@@ -422,6 +414,21 @@ fn animations_and_extras_survive() {
     assert_eq!(t1, 1.0);
 }
 
+/// An EXR page: (width, RGB pixels).
+fn read_exr(path: &Path) -> (usize, Vec<[f32; 3]>) {
+    exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
+        |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b];
+        },
+    )
+    .unwrap()
+    .layer_data
+    .channel_data
+    .pixels
+}
+
 /// `lightmap_<page>.ktx2` (RGB9E5, for Bevy) read back with the `ktx2`
 /// crate: a 2D image of the page's size whose decoded texels are the EXR's
 /// within RGB9E5's quantisation (half a step of the shared exponent: at
@@ -438,15 +445,7 @@ fn ktx2_pages_decode_to_the_exr() {
     assert_eq!(h.format, Some(ktx2::Format::E5B9G9R9_UFLOAT_PACK32));
     assert_eq!(h.pixel_depth, 0, "a 2D texture");
     let level = reader.levels().next().unwrap();
-    let exr = exr::prelude::read_first_rgba_layer_from_file(
-        dir.join("lightmap_0.exr"),
-        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
-        |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * *w + pos.x()] = [r, g, b];
-        },
-    )
-    .unwrap();
-    let (w, px) = &exr.layer_data.channel_data.pixels;
+    let (w, px) = &read_exr(&dir.join("lightmap_0.exr"));
     assert_eq!(h.pixel_width as usize, *w);
     assert_eq!(level.data.len(), px.len() * 4);
     let mut worst = 0.0f32;

@@ -1069,6 +1069,21 @@ fn srgb_linear_to_encoded(c: f32) -> f64 {
     e as f64
 }
 
+/// The albedo view's colour at the centres of the three quads the
+/// material tests lay out along x (None without a graphics adapter).
+fn three_quads_albedo(gltf: &std::path::Path) -> Option<Vec<Vec3>> {
+    let points: Vec<Vec3> = (0..3)
+        .map(|k| Vec3::new(-2.0 + 2.2 * k as f32, 0.0, 0.0))
+        .collect();
+    colours_at(
+        gltf,
+        "albedo",
+        Vec3::new(0.2, 0.0, 9.0),
+        Vec3::new(0.2, 0.0, 0.0),
+        &points,
+    )
+}
+
 /// Pixels at the centres of `points`, rendered (albedo or lit view, no
 /// tone map) from `from` towards `at`; None without an adapter.
 fn colours_at(gltf: &Path, view: &str, from: Vec3, at: Vec3, points: &[Vec3]) -> Option<Vec<Vec3>> {
@@ -1186,16 +1201,7 @@ fn vertex_colours_multiply_base_colour_and_alpha() {
     let model = model::Model::load(&gltf).unwrap();
     assert!(model.scene.meshes[..2].iter().all(|m| m.colors.is_some()));
     assert!(model.scene.meshes[2].colors.is_none());
-    let points: Vec<Vec3> = (0..3)
-        .map(|k| Vec3::new(-2.0 + 2.2 * k as f32, 0.0, 0.0))
-        .collect();
-    let Some(c) = colours_at(
-        &gltf,
-        "albedo",
-        Vec3::new(0.2, 0.0, 9.0),
-        Vec3::new(0.2, 0.0, 0.0),
-        &points,
-    ) else {
+    let Some(c) = three_quads_albedo(&gltf) else {
         return;
     };
     assert_close(c[0], Vec3::new(0.5, 0.25, 0.5), 0.01, "COLOR_0 × factor");
@@ -1268,16 +1274,7 @@ fn texture_coordinate_sets_and_transforms_follow_gltf() {
         .map(|m| m.albedo_texture.as_ref().unwrap().tex_coord)
         .collect();
     assert_eq!(sets, [1, 1, 0]);
-    let points: Vec<Vec3> = (0..3)
-        .map(|k| Vec3::new(-2.0 + 2.2 * k as f32, 0.0, 0.0))
-        .collect();
-    let Some(c) = colours_at(
-        &gltf,
-        "albedo",
-        Vec3::new(0.2, 0.0, 9.0),
-        Vec3::new(0.2, 0.0, 0.0),
-        &points,
-    ) else {
+    let Some(c) = three_quads_albedo(&gltf) else {
         return;
     };
     assert_close(c[0], Vec3::new(0.0, 1.0, 0.0), 0.01, "texCoord 1");
