@@ -656,3 +656,22 @@ fn render_reference_and_final_pass() {
         "{err}"
     );
 }
+
+/// `radbake serve` on a port already taken: a one-line error that names the
+/// address and says what to do, exit 3; a missing folder: exit 1.
+#[test]
+fn serve_reports_a_taken_port() {
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = taken.local_addr().unwrap().port().to_string();
+    let dir = temp_dir("cli-serve");
+    let r = radbake(&["serve", dir.to_str().unwrap(), "--port", &port]);
+    assert_eq!(r.code, 3, "{}", r.stderr);
+    assert!(
+        r.stderr.contains(&format!("127.0.0.1:{port} is in use")) && r.stderr.contains("--port"),
+        "{}",
+        r.stderr
+    );
+    assert_eq!(r.stderr.trim().lines().count(), 1, "{}", r.stderr);
+    let r = radbake(&["serve", dir.join("nope").to_str().unwrap()]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+}
