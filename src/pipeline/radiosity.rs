@@ -143,30 +143,7 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
     log.end("validity");
 
     log.begin("final_gather", s.texels.len() as u64);
-    let extras = Extras {
-        directional: config.directional == config::DirectionalMode::Sh,
-        sky: Vec3::from(config.sky),
-        ao_distance: config.ao_distance,
-        backface_tolerance: config.backface_tolerance,
-        threshold: config.gather_threshold,
-    };
-    // What the gather's rays do not estimate: with `gathering`, the
-    // punctual lights and light samples; else the whole direct pass.
-    let known = if direct.gathering {
-        &direct.parts.light
-    } else {
-        &direct.texel
-    };
-    let gatherer = Gatherer::new(
-        s,
-        &first,
-        &direct.sampled,
-        config.final_gather,
-        config.seed,
-        extras,
-        direct.gathering.then_some((&direct.lights, direct.mis)),
-    )
-    .with_known(known);
+    let gatherer = gatherer(s, &first, &direct, config);
     let g = final_gather(&gatherer, gpu.as_deref(), &advance, &mut log.warnings);
     log.end("final_gather");
     rays.gather = g.rays;
@@ -176,6 +153,40 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
         patch_light: Some(patch_light),
         ..light
     })
+}
+
+/// The final gather's settings over first pass `first`: its extras, the
+/// direct light it estimates with its own rays, and the direct light it
+/// does not (the adaptive gather's yardstick: with `gathering`, the
+/// punctual lights and light samples; else the whole direct pass).
+fn gatherer<'a>(
+    s: &'a Surfaces<'a>,
+    first: &'a [Vec3],
+    direct: &'a DirectLight,
+    config: &BakeConfig,
+) -> Gatherer<'a> {
+    let extras = Extras {
+        directional: config.directional == config::DirectionalMode::Sh,
+        sky: Vec3::from(config.sky),
+        ao_distance: config.ao_distance,
+        backface_tolerance: config.backface_tolerance,
+        threshold: config.gather_threshold,
+    };
+    let known = if direct.gathering {
+        &direct.parts.light
+    } else {
+        &direct.texel
+    };
+    Gatherer::new(
+        s,
+        first,
+        &direct.sampled,
+        config.final_gather,
+        config.seed,
+        extras,
+        direct.gathering.then_some((&direct.lights, direct.mis)),
+    )
+    .with_known(known)
 }
 
 /// The direct solver is O(n³): refuse more than `direct_max_patches`.
