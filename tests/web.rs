@@ -2,7 +2,7 @@
 //! Chromium (`tests/web/`). Needs `npm ci` in `tests/web` and a Chromium
 //! (`CHROMIUM`, or `chromium` on PATH), so it is `#[ignore]`d in the plain
 //! `cargo test`; CI installs both and runs
-//! `cargo test --release --test web -- --ignored`.
+//! `cargo test --release --test web -- --ignored --test-threads 1`.
 
 mod common;
 

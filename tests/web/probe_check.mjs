@@ -86,8 +86,8 @@ try {
   const errors = [];
   tab.on('pageerror', (e) => errors.push(String(e)));
   tab.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  await tab.goto(url);
-  await tab.waitForFunction('window.result !== undefined || false', { timeout: 60000 }).catch(() => {});
+  await tab.goto(url, { waitUntil: 'domcontentloaded', timeout: 120000 });
+  await tab.waitForFunction('window.result !== undefined || false', { timeout: 120000 }).catch(() => {});
   const result = await tab.evaluate(() => window.result);
   if (!result) throw new Error(`the page did not render: ${errors.join('; ')}`);
   // Pixel (x, y) from the bottom left; the sphere's normal where it is well

@@ -28,7 +28,7 @@ try {
   tab.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
   tab.on('requestfailed', (r) => errors.push(`request failed: ${r.url()}`));
   tab.on('response', (r) => { if (r.status() >= 400) errors.push(`${r.status()} ${r.url()}`); });
-  await tab.goto(url);
+  await tab.goto(url, { waitUntil: 'domcontentloaded', timeout: 120000 });
   await tab.waitForFunction('window.radbake && (window.radbake.ready || window.radbake.error)', { timeout: 120000 });
   const state = await tab.evaluate(() => ({ ...window.radbake, three: window.__THREE__ }));
   if (state.error) errors.push(state.error);
