@@ -81,7 +81,8 @@ pub enum DirectionalMode {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Ktx2Mode {
-    /// `lightmap_<page>.ktx2` in `E5B9G9R9_UFLOAT_PACK32`, uncompressed.
+    /// `lightmap_<page>.ktx2` in `E5B9G9R9_UFLOAT_PACK32`, Zstandard
+    /// supercompressed.
     Rgb9e5,
     /// No KTX2 pages.
     Off,

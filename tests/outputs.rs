@@ -444,12 +444,18 @@ fn ktx2_pages_decode_to_the_exr() {
     let h = reader.header();
     assert_eq!(h.format, Some(ktx2::Format::E5B9G9R9_UFLOAT_PACK32));
     assert_eq!(h.pixel_depth, 0, "a 2D texture");
+    assert_eq!(
+        h.supercompression_scheme,
+        Some(ktx2::SupercompressionScheme::Zstandard)
+    );
     let level = reader.levels().next().unwrap();
+    let data = zstd::bulk::decompress(level.data, 1 << 28).unwrap();
     let (w, px) = &read_exr(&dir.join("lightmap_0.exr"));
     assert_eq!(h.pixel_width as usize, *w);
-    assert_eq!(level.data.len(), px.len() * 4);
+    assert_eq!(data.len(), px.len() * 4);
+    assert_eq!(level.uncompressed_byte_length as usize, data.len());
     let mut worst = 0.0f32;
-    for (chunk, want) in level.data.chunks_exact(4).zip(px) {
+    for (chunk, want) in data.chunks_exact(4).zip(px) {
         // The Vulkan specification's decode, written here again.
         let p = u32::from_le_bytes(chunk.try_into().unwrap());
         let scale = 2f32.powi((p >> 27) as i32 - 15 - 9);

@@ -40,6 +40,17 @@ pub fn rgb9e5(c: Vec3) -> u32 {
 /// (six samples: a 9-bit mantissa and the shared 5-bit exponent per
 /// channel), word for word as in Bevy's own `Example.vxgi.ktx2`.
 pub fn ktx2_rgb9e5(size: [u32; 3], texels: &[u32]) -> Vec<u8> {
+    container(size, texels, None)
+}
+
+/// [`ktx2_rgb9e5`] with the level supercompressed by Zstandard at `level`
+/// (KTX2 scheme 2, as Bevy's own sample lightmaps are; Bevy reads it with
+/// its `zstd_rust` feature, on by default).
+pub fn ktx2_rgb9e5_zstd(size: [u32; 3], texels: &[u32], level: i32) -> Vec<u8> {
+    container(size, texels, Some(level))
+}
+
+fn container(size: [u32; 3], texels: &[u32], zstd: Option<i32>) -> Vec<u8> {
     assert_eq!(texels.len(), (size[0] * size[1] * size[2].max(1)) as usize);
     let mut dfd: Vec<u32> = vec![
         0,                       // total size, set below
@@ -62,7 +73,12 @@ pub fn ktx2_rgb9e5(size: [u32; 3], texels: &[u32]) -> Vec<u8> {
     let dfd_off = header_len as u32;
     let dfd_len = dfd[0];
     let data_off = (dfd_off + dfd_len) as u64;
-    let data_len = (texels.len() * 4) as u64;
+    let raw: Vec<u8> = texels.iter().flat_map(|t| t.to_le_bytes()).collect();
+    let data = match zstd {
+        Some(level) => zstd::bulk::compress(&raw, level).expect("zstd compression in memory"),
+        None => raw.clone(),
+    };
+    let data_len = data.len() as u64;
     let mut out = Vec::with_capacity(data_off as usize + data_len as usize);
     out.extend([
         0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A,
@@ -73,10 +89,10 @@ pub fn ktx2_rgb9e5(size: [u32; 3], texels: &[u32]) -> Vec<u8> {
         size[0],
         size[1],
         size[2],
-        0, // layers
-        1, // faces
-        1, // levels
-        0, // no supercompression
+        0,                                  // layers
+        1,                                  // faces
+        1,                                  // levels
+        if zstd.is_some() { 2 } else { 0 }, // supercompression: none or Zstandard
         dfd_off,
         dfd_len,
         0, // no key/value data
@@ -86,15 +102,13 @@ pub fn ktx2_rgb9e5(size: [u32; 3], texels: &[u32]) -> Vec<u8> {
     }
     out.extend(0u64.to_le_bytes()); // no supercompression global data
     out.extend(0u64.to_le_bytes());
-    for v in [data_off, data_len, data_len] {
+    for v in [data_off, data_len, raw.len() as u64] {
         out.extend(v.to_le_bytes());
     }
     for w in dfd {
         out.extend(w.to_le_bytes());
     }
-    for t in texels {
-        out.extend(t.to_le_bytes());
-    }
+    out.extend(data);
     out
 }
 

@@ -329,7 +329,7 @@ pub fn write_engine_outputs(
                 .iter()
                 .map(|v| ktx2::rgb9e5(*v))
                 .collect();
-            let bytes = ktx2::ktx2_rgb9e5([lightmaps.width, lightmaps.height, 0], &texels);
+            let bytes = ktx2::ktx2_rgb9e5_zstd([lightmaps.width, lightmaps.height, 0], &texels, 9);
             write_bytes_atomic(&out_dir.join(k), &bytes)?;
             written.push(out_dir.join(k));
         }
