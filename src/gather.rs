@@ -66,9 +66,9 @@ fn texel_ray(sampler: &TexelSampler, k: u32, nets: &(Net, Net)) -> (Vec3, Vec3, 
     (p, ng, dir)
 }
 
-/// A texel's two nets (position, direction).
-fn texel_nets(seed: u64, t: usize) -> (Net, Net) {
-    let mut rng = Stream::new(seed, PURPOSE, t as u64);
+/// A texel's two nets (position, direction) for `purpose`.
+fn texel_nets(seed: u64, purpose: u64, t: usize) -> (Net, Net) {
+    let mut rng = Stream::new(seed, purpose, t as u64);
     (Net::shuffled(&mut rng), Net::new(&mut rng))
 }
 
@@ -114,8 +114,7 @@ pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<u8>, u64) {
             let range = c * chunk..((c + 1) * chunk).min(n);
             let mut out = Vec::with_capacity(range.len());
             for t in range {
-                let mut rng = Stream::new(seed, VALIDITY_PURPOSE, t as u64);
-                let nets = (Net::shuffled(&mut rng), Net::new(&mut rng));
+                let nets = texel_nets(seed, VALIDITY_PURPOSE, t);
                 let sampler = s.texel_sampler(t as u32);
                 let mut back = 0u8;
                 for k in 0..rays {
@@ -268,7 +267,7 @@ impl<'a> Gatherer<'a> {
     /// direction): what [`Gatherer::texel`] casts, before it stops early
     /// on an invalid texel.
     fn rays_of(&self, t: usize, out: &mut [(Vec3, Vec3)]) {
-        let nets = texel_nets(self.seed, t);
+        let nets = texel_nets(self.seed, PURPOSE, t);
         let sampler = self.s.texel_sampler(t as u32);
         for (k, o) in out.iter_mut().enumerate().take(self.rays as usize) {
             let (p, ng, dir) = texel_ray(&sampler, k as u32, &nets);
@@ -296,7 +295,7 @@ impl<'a> Gatherer<'a> {
                 light: Vec3::ZERO,
             };
         }
-        let nets = texel_nets(self.seed, t);
+        let nets = texel_nets(self.seed, PURPOSE, t);
         let sampler = s.texel_sampler(t as u32);
         let known = self.known.map_or(0.0, |k| k[t].element_sum() / 3.0);
         // The rule judges the irradiance only: the directional part and AO

@@ -112,6 +112,15 @@ impl Geometry {
         all
     }
 
+    /// World bounds (min, max) of every triangle; None without triangles.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let (lo, hi) = self.p_ws.iter().flatten().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        (lo.x <= hi.x).then_some((lo, hi))
+    }
+
     /// Number of triangles.
     pub fn len(&self) -> usize {
         self.instance.len()

@@ -67,15 +67,10 @@ enum Source {
 
 /// Scene bounds (centre, radius) for directional and sky photons.
 fn bounds(tracer: &Tracer) -> (Vec3, f32) {
-    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
-    for p in tracer.geometry.p_ws.iter().flatten() {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
+    match tracer.geometry.bounds() {
+        Some((lo, hi)) => ((lo + hi) * 0.5, ((hi - lo).length() * 0.5).max(1e-3)),
+        None => (Vec3::ZERO, 1.0),
     }
-    if lo.x > hi.x {
-        return (Vec3::ZERO, 1.0);
-    }
-    ((lo + hi) * 0.5, ((hi - lo).length() * 0.5).max(1e-3))
 }
 
 /// Uniform point on the unit disk perpendicular to `d`.

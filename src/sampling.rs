@@ -10,7 +10,7 @@ use rand::{Rng as _, SeedableRng};
 pub struct Stream(rand_pcg::Pcg32);
 
 /// SplitMix64 finaliser, to turn (seed, ids) into well-mixed stream seeds.
-fn mix(mut z: u64) -> u64 {
+pub(crate) fn mix(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     z ^ (z >> 31)

@@ -251,14 +251,7 @@ fn cornell_probes_agree_with_the_path_tracer() {
     let geometry = radbake::geometry::Geometry::unmapped(&scene);
     let rays = radbake::raycast::RayCaster::new(&scene, &geometry);
     let tracer = radbake::trace::Tracer::new(&scene, &geometry, &rays, Vec3::ZERO);
-    let axes = [
-        Vec3::X,
-        Vec3::NEG_X,
-        Vec3::Y,
-        Vec3::NEG_Y,
-        Vec3::Z,
-        Vec3::NEG_Z,
-    ];
+    let axes = sh::AXES;
     // A few valid probes spread over the grid.
     let picks: Vec<usize> = (0..probes.len())
         .filter(|&i| probes.valid[i])

@@ -60,10 +60,7 @@ fn owners(atlas: &Atlas, page: u32, w: u32, h: u32) -> Vec<usize> {
 /// A dither offset in [−½, ½) for (page, texel, channel): a hash, so the
 /// output is the same on every run and thread count.
 fn dither(page: usize, texel: u32, channel: u32) -> f32 {
-    let mut z = (page as u64) << 40 ^ (texel as u64) << 2 ^ channel as u64;
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^= z >> 31;
+    let z = crate::sampling::mix((page as u64) << 40 ^ (texel as u64) << 2 ^ channel as u64);
     (z >> 40) as f32 / (1u64 << 24) as f32 - 0.5
 }
 

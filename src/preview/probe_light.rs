@@ -52,7 +52,7 @@ fn nearest_in_grids(probes: &Probes, p_ws: Vec3) -> Option<Vec3> {
         .volumes
         .iter()
         .map(|v| {
-            let local = v.world_from_box.inverse().transform_point3(p_ws);
+            let local = v.to_local(p_ws);
             let q = v
                 .world_from_box
                 .transform_point3(local.clamp(Vec3::splat(-0.4999), Vec3::splat(0.4999)));

@@ -76,9 +76,12 @@ impl Probes {
     /// around it (clamped to the outer probes, as Bevy samples); `None`
     /// outside every grid.
     pub fn irradiance_over_pi(&self, p: Vec3, n: Vec3) -> Option<Vec3> {
-        let v = self.volumes.iter().find(|v| inside(v, p))?;
+        let (v, local) = self
+            .volumes
+            .iter()
+            .map(|v| (v, v.to_local(p)))
+            .find(|(_, l)| l.abs().max_element() <= 0.5)?;
         let r = v.resolution.as_vec3();
-        let local = v.world_from_box.inverse().transform_point3(p);
         let stp = ((local + 0.5) * r).clamp(Vec3::splat(0.5), r - 0.5) - 0.5;
         let base = stp.floor();
         let f = stp - base;
@@ -179,11 +182,6 @@ impl Probes {
     }
 }
 
-fn inside(v: &Volume, p: Vec3) -> bool {
-    let l = v.world_from_box.inverse().transform_point3(p);
-    l.abs().max_element() <= 0.5
-}
-
 /// What the probe stage needs from the bake.
 pub struct Inputs<'a> {
     /// The surfaces.
@@ -199,15 +197,7 @@ pub struct Inputs<'a> {
 pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)) -> Probes {
     let s = inputs.s;
     let g = s.geometry;
-    let bounds = g.p_ws.iter().flatten().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
-    let bounds = if bounds.0.is_finite() {
-        bounds
-    } else {
-        (Vec3::ZERO, Vec3::ONE)
-    };
+    let bounds = g.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
     let (volumes, coarsened) = placement::place(
         bounds,
         inputs.specs,

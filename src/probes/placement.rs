@@ -65,6 +65,11 @@ impl Volume {
         self.world_from_box.transform_point3(local)
     }
 
+    /// World point `p` in the box's unit-cube coordinates ([−½, ½]³ inside).
+    pub fn to_local(&self, p: Vec3) -> Vec3 {
+        self.world_from_box.inverse().transform_point3(p)
+    }
+
     /// Edge lengths of the box (metres).
     pub fn size(&self) -> Vec3 {
         box_size(&self.world_from_box)

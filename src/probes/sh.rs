@@ -54,18 +54,20 @@ pub fn irradiance_over_pi(sh: &Sh9, n: Vec3) -> Vec3 {
         .sum()
 }
 
+/// The six axis normals, in the ambient cube's face order.
+pub const AXES: [Vec3; 6] = [
+    Vec3::X,
+    Vec3::NEG_X,
+    Vec3::Y,
+    Vec3::NEG_Y,
+    Vec3::Z,
+    Vec3::NEG_Z,
+];
+
 /// The six faces of Valve's ambient cube (Mitchell 2006), +X, −X, +Y, −Y,
-/// +Z, −Z: irradiance / π for each axis normal, clamped at zero.
+/// +Z, −Z ([`AXES`]): irradiance / π for each axis normal, clamped at zero.
 pub fn ambient_cube(sh: &Sh9) -> [Vec3; 6] {
-    let axes = [
-        Vec3::X,
-        Vec3::NEG_X,
-        Vec3::Y,
-        Vec3::NEG_Y,
-        Vec3::Z,
-        Vec3::NEG_Z,
-    ];
-    axes.map(|n| irradiance_over_pi(sh, n).max(Vec3::ZERO))
+    AXES.map(|n| irradiance_over_pi(sh, n).max(Vec3::ZERO))
 }
 
 #[cfg(test)]

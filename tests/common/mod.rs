@@ -38,6 +38,14 @@ pub struct GltfBuilder {
     pub materials: Vec<Value>,
 }
 
+/// Little-endian bytes of float vectors, as an accessor's buffer view holds them.
+fn le_bytes<const N: usize>(data: &[[f32; N]]) -> Vec<u8> {
+    data.iter()
+        .flatten()
+        .flat_map(|f| f.to_le_bytes())
+        .collect()
+}
+
 impl GltfBuilder {
     fn push_view(&mut self, bytes: &[u8], target: u32) -> usize {
         while self.buffer.len() % 4 != 0 {
@@ -53,11 +61,7 @@ impl GltfBuilder {
 
     /// A VEC3 float accessor (with min/max, as POSITION requires).
     pub fn vec3(&mut self, data: &[[f32; 3]]) -> usize {
-        let bytes: Vec<u8> = data
-            .iter()
-            .flatten()
-            .flat_map(|f| f.to_le_bytes())
-            .collect();
+        let bytes = le_bytes(data);
         let view = self.push_view(&bytes, 34962);
         let mut min = [f32::INFINITY; 3];
         let mut max = [f32::NEG_INFINITY; 3];
@@ -81,11 +85,7 @@ impl GltfBuilder {
 
     /// A VEC2 float accessor (texture coordinates).
     pub fn vec2(&mut self, data: &[[f32; 2]]) -> usize {
-        let bytes: Vec<u8> = data
-            .iter()
-            .flatten()
-            .flat_map(|f| f.to_le_bytes())
-            .collect();
+        let bytes = le_bytes(data);
         let view = self.push_view(&bytes, 34962);
         self.accessors.push(
             json!({"bufferView": view, "componentType": 5126, "count": data.len(), "type": "VEC2"}),
