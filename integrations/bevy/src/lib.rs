@@ -1,0 +1,488 @@
+//! Load a radbake bake into Bevy 0.19: lightmaps, irradiance volumes and the
+//! lights the bake contains, from the bake folder's `manifest.json`.
+//!
+//! ```no_run
+//! use bevy::prelude::*;
+//! use bevy_radbake::{RadbakeBake, RadbakePlugin};
+//!
+//! fn setup(mut commands: Commands, assets: Res<AssetServer>) {
+//!     // `bakes/cornell` is a `radbake bake --out` folder under `assets/`.
+//!     commands.spawn(RadbakeBake::load(&assets, "bakes/cornell"));
+//! }
+//! # fn main() { App::new().add_plugins((DefaultPlugins, RadbakePlugin::default())).add_systems(Startup, setup); }
+//! ```
+//!
+//! What the plugin does, once the manifest and the baked glTF are loaded:
+//! - spawns the glTF's default scene under the [`RadbakeBake`] entity (unless
+//!   the entity already has a [`WorldAssetRoot`]);
+//! - once the scene is spawned, gives every mesh entity of every baked node
+//!   instance a [`Lightmap`] with that instance's `uv_rect` (instances of one
+//!   mesh have their own rectangles: the baked `.glb` gives each instance its
+//!   own mesh copy, so the instance is found by its node's mesh handles, not
+//!   by name);
+//! - sets `lightmap_exposure` on their materials to
+//!   [`RadbakePlugin::exposure`];
+//! - spawns each probe grid as a [`LightProbe`] + [`IrradianceVolume`] with
+//!   the grid's transform, `intensity` = the same factor and
+//!   `affects_lightmapped_meshes: false`;
+//! - keeps Bevy's `GlobalAmbientLight` off lightmapped meshes (the bake
+//!   holds the sky);
+//! - switches `affects_lightmapped_mesh_diffuse` off on the scene's lights
+//!   (radbake bakes every light: their diffuse light on lightmapped meshes is
+//!   in the lightmap) and scales their intensity by the same factor, so their
+//!   specular and their light on dynamic objects stay in proportion to the
+//!   bake.
+//!
+//! **Units and exposure.** A radbake texel is incident irradiance / π
+//! (`L_out = albedo × lightmap + emission`), in the glTF's own units. Bevy
+//! adds `lightmap × lightmap_exposure × diffuse` to the indirect light and
+//! multiplies all lighting but emission by the camera's exposure,
+//! `2^−ev100 / 1.2` (`bevy_pbr` `pbr_functions.wgsl`, `bevy_camera`
+//! `Exposure::exposure`). The default factor, [`DEFAULT_EXPOSURE`] =
+//! 1.2 × 2^9.7 ≈ 998, cancels the exposure of Bevy's default camera
+//! (`Exposure::BLENDER`, ev100 9.7): a default Bevy camera shows the bake at
+//! the brightness `radbake preview --exposure 0` shows, and glTF emission
+//! (which Bevy does not expose by default) agrees with it. Each stop of
+//! `ev100` below 9.7 is one stop of `radbake preview --exposure` above 0 for
+//! the lightmapped and probe-lit light.
+
+use bevy::asset::io::Reader;
+use bevy::asset::{AssetLoader, LoadContext};
+use bevy::gltf::{Gltf, GltfMesh, GltfNode};
+use bevy::light::{IrradianceVolume, LightProbe};
+use bevy::pbr::Lightmap;
+use bevy::platform::collections::{HashMap, HashSet};
+use bevy::prelude::*;
+use bevy::world_serialization::WorldAssetRoot;
+use serde::Deserialize;
+
+/// The factor that makes a default Bevy camera (`Exposure::BLENDER`, ev100
+/// 9.7) show a radbake bake at the preview's EV 0: 1.2 × 2^9.7.
+pub const DEFAULT_EXPOSURE: f32 = 997.9866;
+
+/// Loads radbake bakes: register it once.
+#[derive(Clone, Debug)]
+pub struct RadbakePlugin {
+    /// `StandardMaterial::lightmap_exposure` of lightmapped materials, the
+    /// irradiance volumes' `intensity` and the factor on the scene's lights.
+    pub exposure: f32,
+    /// Spawn the bake's irradiance volumes (when it has probes).
+    pub probes: bool,
+}
+
+impl Default for RadbakePlugin {
+    fn default() -> Self {
+        Self {
+            exposure: DEFAULT_EXPOSURE,
+            probes: true,
+        }
+    }
+}
+
+/// The plugin's settings, as a resource.
+#[derive(Resource, Clone, Debug)]
+pub struct RadbakeSettings {
+    pub exposure: f32,
+    pub probes: bool,
+}
+
+impl Plugin for RadbakePlugin {
+    fn build(&self, app: &mut App) {
+        app.init_asset::<RadbakeManifest>()
+            .register_asset_loader(ManifestLoader)
+            .insert_resource(RadbakeSettings {
+                exposure: self.exposure,
+                probes: self.probes,
+            })
+            .add_systems(PostStartup, ambient_off_lightmapped)
+            .add_systems(Update, (spawn_baked_scenes, apply_bakes).chain());
+    }
+}
+
+/// Put this on an entity to load a bake: the entity gets the baked scene as
+/// its child and the bake's lightmaps, probes and light settings.
+#[derive(Component, Clone, Debug)]
+pub struct RadbakeBake {
+    pub manifest: Handle<RadbakeManifest>,
+}
+
+impl RadbakeBake {
+    /// `folder`: the bake folder's asset path (the `--out` of `radbake
+    /// bake`; `""` for the asset root itself); its `manifest.json` is
+    /// loaded.
+    pub fn load(assets: &AssetServer, folder: &str) -> Self {
+        let folder = folder.trim_end_matches('/');
+        let path = if folder.is_empty() || folder == "." {
+            "manifest.json".to_string()
+        } else {
+            format!("{folder}/manifest.json")
+        };
+        Self {
+            manifest: assets.load(path),
+        }
+    }
+}
+
+/// What the plugin did for one bake, on the [`RadbakeBake`] entity once it is
+/// applied.
+#[derive(Component, Clone, Debug, Default)]
+pub struct RadbakeApplied {
+    /// Mesh entities given a `Lightmap`.
+    pub lightmapped: usize,
+    /// Manifest instances whose mesh entities were not found in the scene.
+    pub missing: Vec<String>,
+    /// Irradiance volumes spawned.
+    pub volumes: usize,
+    /// Lights switched off for lightmapped diffuse.
+    pub lights: usize,
+}
+
+/// `manifest.json` of a bake, with its files' handles.
+#[derive(Asset, TypePath, Debug)]
+pub struct RadbakeManifest {
+    /// The baked glTF (`<stem>.baked.glb`).
+    pub gltf: Handle<Gltf>,
+    /// One lightmap image per page (`lightmap_<page>.ktx2`).
+    pub pages: Vec<Handle<Image>>,
+    /// The node instances, in the manifest's order.
+    pub instances: Vec<Instance>,
+    /// The probe grids as Bevy irradiance volumes.
+    pub volumes: Vec<Volume>,
+}
+
+/// One baked node instance.
+#[derive(Debug, Clone, Deserialize)]
+pub struct Instance {
+    pub node: String,
+    pub node_index: usize,
+    pub page: usize,
+    /// (min.x, min.y, max.x, max.y) in [0, 1], min = top-left: Bevy's
+    /// `Lightmap::uv_rect`.
+    pub uv_rect: [f32; 4],
+}
+
+/// One probe grid, as a Bevy irradiance volume.
+#[derive(Debug, Clone)]
+pub struct Volume {
+    pub voxels: Handle<Image>,
+    /// Maps Bevy's unit cube [−½, ½]³ onto the grid's box.
+    pub transform: Transform,
+}
+
+#[derive(Deserialize)]
+struct ManifestFile {
+    baked_gltf: Option<String>,
+    pages: Vec<PageFile>,
+    instances: Vec<Instance>,
+    probes: Option<ProbesFile>,
+}
+
+#[derive(Deserialize)]
+struct PageFile {
+    ktx2: Option<String>,
+}
+
+#[derive(Deserialize)]
+struct ProbesFile {
+    volumes: Vec<VolumeFile>,
+}
+
+#[derive(Deserialize)]
+struct VolumeFile {
+    translation: [f32; 3],
+    rotation_xyzw: [f32; 4],
+    scale: [f32; 3],
+    bevy_irradiance_volume: String,
+}
+
+/// Why a manifest could not be loaded.
+#[derive(Debug)]
+pub struct ManifestError(String);
+
+impl std::fmt::Display for ManifestError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for ManifestError {}
+
+/// Reads `manifest.json` and starts loading the files it names, relative to
+/// the manifest's folder.
+#[derive(Default, TypePath)]
+pub struct ManifestLoader;
+
+impl AssetLoader for ManifestLoader {
+    type Asset = RadbakeManifest;
+    type Settings = ();
+    type Error = ManifestError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        load_context: &mut LoadContext<'_>,
+    ) -> Result<RadbakeManifest, ManifestError> {
+        let path = load_context.path().clone();
+        let fail = |what: String| ManifestError(format!("{path}: {what}"));
+        let mut bytes = Vec::new();
+        reader
+            .read_to_end(&mut bytes)
+            .await
+            .map_err(|e| fail(e.to_string()))?;
+        let file: ManifestFile = serde_json::from_slice(&bytes)
+            .map_err(|e| fail(format!("not a radbake manifest: {e}")))?;
+        let relative = |name: &str| {
+            path.resolve_embed_str(name)
+                .map_err(|e| fail(format!("bad file name {name:?}: {e}")))
+        };
+        let gltf_name = file
+            .baked_gltf
+            .ok_or_else(|| fail("the bake has no baked glTF (baked_gltf is null)".into()))?;
+        let gltf = load_context.load(relative(&gltf_name)?);
+        let mut pages = Vec::with_capacity(file.pages.len());
+        for (k, page) in file.pages.iter().enumerate() {
+            let name = page.ktx2.as_deref().ok_or_else(|| {
+                fail(format!(
+                    "page {k} has no KTX2 file: bake with --ktx2 rgb9e5 (Bevy needs a filterable HDR image)"
+                ))
+            })?;
+            pages.push(load_context.load(relative(name)?));
+        }
+        if let Some(i) = file.instances.iter().find(|i| i.page >= pages.len()) {
+            return Err(fail(format!(
+                "instance {} names page {} of {}",
+                i.node,
+                i.page,
+                pages.len()
+            )));
+        }
+        let mut volumes = Vec::new();
+        for v in file.probes.map(|p| p.volumes).unwrap_or_default() {
+            volumes.push(Volume {
+                voxels: load_context.load(relative(&v.bevy_irradiance_volume)?),
+                transform: Transform {
+                    translation: Vec3::from_array(v.translation),
+                    rotation: Quat::from_array(v.rotation_xyzw),
+                    scale: Vec3::from_array(v.scale),
+                },
+            });
+        }
+        Ok(RadbakeManifest {
+            gltf,
+            pages,
+            instances: file.instances,
+            volumes,
+        })
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["json"]
+    }
+}
+
+/// The bake holds the sky's light: Bevy's global ambient light (80 by
+/// default) stays off lightmapped meshes.
+fn ambient_off_lightmapped(ambient: Option<ResMut<GlobalAmbientLight>>) {
+    if let Some(mut a) = ambient {
+        a.affects_lightmapped_meshes = false;
+    }
+}
+
+/// Gives a [`RadbakeBake`] entity its glTF scene once the manifest is loaded.
+fn spawn_baked_scenes(
+    mut commands: Commands,
+    bakes: Waiting,
+    manifests: Res<Assets<RadbakeManifest>>,
+    gltfs: Res<Assets<Gltf>>,
+) {
+    for (entity, bake) in &bakes {
+        let Some(gltf) = manifests
+            .get(&bake.manifest)
+            .and_then(|m| gltfs.get(&m.gltf))
+        else {
+            continue;
+        };
+        let Some(scene) = gltf
+            .default_scene
+            .clone()
+            .or_else(|| gltf.scenes.first().cloned())
+        else {
+            warn!("radbake: the baked glTF has no scene");
+            continue;
+        };
+        commands.entity(entity).insert(WorldAssetRoot(scene));
+    }
+}
+
+/// Bakes waiting for their scene.
+type Waiting<'w, 's> = Query<
+    'w,
+    's,
+    (Entity, &'static RadbakeBake),
+    (Without<WorldAssetRoot>, Without<RadbakeApplied>),
+>;
+/// Bakes whose scene is spawned or spawning, not yet applied.
+type Spawned<'w, 's> =
+    Query<'w, 's, (Entity, &'static RadbakeBake), (With<WorldAssetRoot>, Without<RadbakeApplied>)>;
+/// Everything [`apply_bakes`] reads from the world.
+type MeshEntities<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        &'static Mesh3d,
+        Option<&'static MeshMaterial3d<StandardMaterial>>,
+    ),
+>;
+
+/// Once a bake's scene is spawned: lightmaps, material exposure, volumes and
+/// lights (see the crate's doc).
+#[allow(clippy::too_many_arguments)]
+fn apply_bakes(
+    mut commands: Commands,
+    settings: Res<RadbakeSettings>,
+    bakes: Spawned,
+    children: Query<&Children>,
+    meshes: MeshEntities,
+    mut lights: ParamSet<(
+        Query<&mut PointLight>,
+        Query<&mut SpotLight>,
+        Query<&mut DirectionalLight>,
+    )>,
+    manifests: Res<Assets<RadbakeManifest>>,
+    gltfs: Res<Assets<Gltf>>,
+    gltf_nodes: Res<Assets<GltfNode>>,
+    gltf_meshes: Res<Assets<GltfMesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+) {
+    for (root, bake) in &bakes {
+        let Some(manifest) = manifests.get(&bake.manifest) else {
+            continue;
+        };
+        let Some(gltf) = gltfs.get(&manifest.gltf) else {
+            continue;
+        };
+        let descendants: Vec<Entity> = children.iter_descendants(root).collect();
+        let by_mesh: HashMap<AssetId<Mesh>, Vec<Entity>> = descendants
+            .iter()
+            .filter_map(|&e| meshes.get(e).ok())
+            .fold(HashMap::default(), |mut map, (e, mesh, _)| {
+                map.entry(mesh.id()).or_default().push(e);
+                map
+            });
+        if by_mesh.is_empty() {
+            continue; // the scene is not spawned yet
+        }
+        let mut applied = RadbakeApplied::default();
+        let mut exposed = HashSet::new();
+        for inst in &manifest.instances {
+            let handles = instance_meshes(gltf, &gltf_nodes, &gltf_meshes, inst.node_index);
+            let entities: Vec<Entity> = handles
+                .iter()
+                .flat_map(|h| by_mesh.get(h).into_iter().flatten().copied())
+                .collect();
+            if entities.is_empty() {
+                applied.missing.push(inst.node.clone());
+                continue;
+            }
+            let [x0, y0, x1, y1] = inst.uv_rect;
+            for e in entities {
+                commands.entity(e).insert(Lightmap {
+                    image: manifest.pages[inst.page].clone(),
+                    uv_rect: Rect::new(x0, y0, x1, y1),
+                    bicubic_sampling: false,
+                });
+                applied.lightmapped += 1;
+                if let Ok((_, _, Some(mat))) = meshes.get(e) {
+                    if exposed.insert(mat.id()) {
+                        if let Some(mut m) = materials.get_mut(&mat.0) {
+                            m.lightmap_exposure = settings.exposure;
+                        }
+                    }
+                }
+            }
+        }
+        if settings.probes {
+            for v in &manifest.volumes {
+                let volume = commands
+                    .spawn((
+                        v.transform,
+                        LightProbe {
+                            falloff: Vec3::ZERO,
+                        },
+                        IrradianceVolume {
+                            voxels: v.voxels.clone(),
+                            intensity: settings.exposure,
+                            affects_lightmapped_meshes: false,
+                        },
+                    ))
+                    .id();
+                commands.entity(root).add_child(volume);
+                applied.volumes += 1;
+            }
+        }
+        applied.lights = baked_lights(&descendants, &mut lights, settings.exposure);
+        if !applied.missing.is_empty() {
+            warn!(
+                "radbake: {} baked instances not found in the scene: {:?}",
+                applied.missing.len(),
+                applied.missing
+            );
+        }
+        info!(
+            "radbake: {} lightmapped meshes, {} irradiance volumes, {} lights",
+            applied.lightmapped, applied.volumes, applied.lights
+        );
+        commands.entity(root).insert(applied);
+    }
+}
+
+/// The `Mesh` assets of glTF node `index`'s primitives.
+fn instance_meshes(
+    gltf: &Gltf,
+    nodes: &Assets<GltfNode>,
+    meshes: &Assets<GltfMesh>,
+    index: usize,
+) -> Vec<AssetId<Mesh>> {
+    gltf.nodes
+        .get(index)
+        .and_then(|h| nodes.get(h))
+        .and_then(|n| n.mesh.as_ref())
+        .and_then(|m| meshes.get(m))
+        .map(|m| m.primitives.iter().map(|p| p.mesh.id()).collect())
+        .unwrap_or_default()
+}
+
+/// Every light of the scene is in the bake: its diffuse light on lightmapped
+/// meshes is switched off and its intensity scaled by `exposure` (see the
+/// crate's doc). Returns how many lights.
+fn baked_lights(
+    entities: &[Entity],
+    lights: &mut ParamSet<(
+        Query<&mut PointLight>,
+        Query<&mut SpotLight>,
+        Query<&mut DirectionalLight>,
+    )>,
+    exposure: f32,
+) -> usize {
+    let mut n = 0;
+    for &e in entities {
+        if let Ok(mut l) = lights.p0().get_mut(e) {
+            l.affects_lightmapped_mesh_diffuse = false;
+            l.intensity *= exposure;
+            n += 1;
+        }
+        if let Ok(mut l) = lights.p1().get_mut(e) {
+            l.affects_lightmapped_mesh_diffuse = false;
+            l.intensity *= exposure;
+            n += 1;
+        }
+        if let Ok(mut l) = lights.p2().get_mut(e) {
+            l.affects_lightmapped_mesh_diffuse = false;
+            l.illuminance *= exposure;
+            n += 1;
+        }
+    }
+    n
+}

@@ -1,0 +1,471 @@
+//! A real Bevy render of a radbake bake: the Cornell box baked by radbake,
+//! loaded through `RadbakePlugin`, rendered by Bevy 0.19's own renderer
+//! (headless, to an image target, from the glTF camera) and compared with
+//! `radbake preview --headless` of the same camera. Also checks that every
+//! lightmapped mesh got its `Lightmap` and that instances of one mesh got
+//! their own rectangles.
+//!
+//! Needs a graphics adapter (lavapipe in CI); without one it says so and
+//! passes only if `RADBAKE_REQUIRE_GPU` is unset.
+
+use bevy::app::ScheduleRunnerPlugin;
+use bevy::camera::RenderTarget;
+use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
+use bevy::pbr::Lightmap;
+use bevy::prelude::*;
+use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+use bevy::render::render_resource::{TextureFormat, TextureUsages};
+use bevy::render::RenderPlugin;
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use bevy_radbake::{RadbakeApplied, RadbakeBake, RadbakePlugin};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+/// Width and height of both renders: a multiple of 32, so Bevy's readback
+/// rows (256-byte aligned, 8 bytes a pixel) have no padding.
+const SIZE: u32 = 256;
+
+/// One Bevy app at a time in this process.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("bevy-radbake-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Bakes `gltf` into `out` (radbake's library, the CLI's defaults but the
+/// texel density).
+fn bake(gltf: &Path, out: &Path, texels_per_meter: f32) {
+    let scene = radbake::scene::load(gltf, &Default::default()).unwrap();
+    let config = radbake::BakeConfig {
+        texels_per_meter,
+        ..Default::default()
+    };
+    let bake = radbake::bake(&scene, &config, &radbake::Silent).unwrap();
+    radbake::output::write_engine_outputs(out, "scene", &bake).unwrap();
+}
+
+/// What a Bevy run saw.
+struct BevyRun {
+    /// Linear RGBA, row-major, `SIZE`², or None when nothing was rendered.
+    pixels: Option<Vec<[f32; 4]>>,
+    applied: RadbakeApplied,
+    /// Per mesh entity: its node's name and its lightmap's rectangle.
+    lightmaps: Vec<(String, Option<Rect>)>,
+}
+
+#[derive(Resource, Clone)]
+struct Target(Handle<Image>);
+
+#[derive(Resource, Clone, Default)]
+struct Captured(Arc<Mutex<Option<Vec<u8>>>>);
+
+/// Loads the bake in `dir` with `RadbakePlugin`; with `render`, renders it
+/// from its first glTF camera, linear (HDR target, no tone mapping, no
+/// dither, Bevy's default exposure), and reads the image back.
+fn run_bevy(dir: &Path, render: bool) -> BevyRun {
+    let mut app = App::new();
+    app.add_plugins(
+        DefaultPlugins
+            .set(AssetPlugin {
+                file_path: dir.to_string_lossy().into_owned(),
+                ..default()
+            })
+            .set(WindowPlugin {
+                primary_window: None,
+                exit_condition: ExitCondition::DontExit,
+                close_when_requested: false,
+                ..default()
+            })
+            .set(RenderPlugin {
+                // Every pipeline ready when first used: no frame drawn
+                // with a piece missing.
+                synchronous_pipeline_compilation: true,
+                ..default()
+            })
+            .disable::<WinitPlugin>(),
+    )
+    .add_plugins(ScheduleRunnerPlugin::default())
+    .add_plugins(RadbakePlugin::default())
+    .init_resource::<Captured>()
+    // The preview's background is black.
+    .insert_resource(ClearColor(Color::BLACK))
+    .add_systems(
+        Startup,
+        |mut commands: Commands, assets: Res<AssetServer>, mut images: ResMut<Assets<Image>>| {
+            let mut image = Image::new_target_texture(SIZE, SIZE, TextureFormat::Rgba16Float, None);
+            image.texture_descriptor.usage |= TextureUsages::COPY_SRC;
+            commands.insert_resource(Target(images.add(image)));
+            commands.spawn(RadbakeBake::load(&assets, ""));
+        },
+    );
+    if render {
+        app.add_systems(Update, aim_camera);
+    }
+    app.finish();
+    app.cleanup();
+    let captured = app.world().resource::<Captured>().clone();
+    let mut ready_at = None;
+    for frame in 0..3000 {
+        app.update();
+        let world = app.world_mut();
+        let applied = world
+            .query::<&RadbakeApplied>()
+            .iter(world)
+            .next()
+            .is_some();
+        let manifest = world
+            .query::<&RadbakeBake>()
+            .iter(world)
+            .next()
+            .unwrap()
+            .manifest
+            .clone();
+        let loaded = world
+            .resource::<AssetServer>()
+            .is_loaded_with_dependencies(&manifest);
+        if applied && loaded && ready_at.is_none() {
+            ready_at = Some(frame);
+            if !render {
+                break;
+            }
+        }
+        // Frames for the uploads (the lightmap pages, the volume), then
+        // one readback.
+        if ready_at.is_some_and(|r| frame == r + 60) {
+            let target = world.resource::<Target>().0.clone();
+            let sink = captured.0.clone();
+            world.spawn(Readback::texture(target)).observe(
+                move |event: On<ReadbackComplete>, mut commands: Commands| {
+                    let mut slot = sink.lock().unwrap();
+                    if slot.is_none() {
+                        *slot = Some(event.data.clone());
+                        commands.entity(event.entity).despawn();
+                    }
+                },
+            );
+        }
+        if captured.0.lock().unwrap().is_some() {
+            break;
+        }
+    }
+    assert!(
+        ready_at.is_some(),
+        "the bake was not applied within 3000 frames"
+    );
+    let world = app.world_mut();
+    let applied = world
+        .query::<&RadbakeApplied>()
+        .iter(world)
+        .next()
+        .unwrap()
+        .clone();
+    let mut q = world.query::<(&Mesh3d, Option<&Lightmap>, &ChildOf)>();
+    let parents: Vec<(Entity, Option<Rect>)> = q
+        .iter(world)
+        .map(|(_, l, p)| (p.parent(), l.map(|l| l.uv_rect)))
+        .collect();
+    let lightmaps = parents
+        .into_iter()
+        .map(|(p, r)| {
+            let name = world
+                .get::<Name>(p)
+                .map(|n| n.to_string())
+                .unwrap_or_default();
+            (name, r)
+        })
+        .collect();
+    let pixels = captured.0.lock().unwrap().take().map(|bytes| {
+        assert_eq!(bytes.len(), (SIZE * SIZE * 8) as usize, "readback size");
+        bytes
+            .chunks_exact(8)
+            .map(|p| {
+                let c = |k: usize| half::f16::from_le_bytes([p[2 * k], p[2 * k + 1]]).to_f32();
+                [c(0), c(1), c(2), c(3)]
+            })
+            .collect()
+    });
+    BevyRun {
+        pixels,
+        applied,
+        lightmaps,
+    }
+}
+
+/// Once the bake is applied: a camera at the first glTF camera's place,
+/// with its projection, renders to the target, linear (the glTF camera is
+/// switched off).
+fn aim_camera(
+    mut commands: Commands,
+    target: Res<Target>,
+    applied: Query<Entity, Added<RadbakeApplied>>,
+    children: Query<&Children>,
+    mut cameras: Query<(&mut Camera, &GlobalTransform, &Projection)>,
+) {
+    for root in &applied {
+        let gltf_camera = children
+            .iter_descendants(root)
+            .find(|e| cameras.contains(*e))
+            .expect("the baked scene has a glTF camera");
+        let (mut camera, at, projection) = cameras.get_mut(gltf_camera).unwrap();
+        camera.is_active = false;
+        commands.spawn((
+            Camera3d::default(),
+            at.compute_transform(),
+            projection.clone(),
+            RenderTarget::Image(target.0.clone().into()),
+            bevy::camera::Hdr,
+            Tonemapping::None,
+            DebandDither::Disabled,
+            Msaa::Off,
+        ));
+    }
+}
+
+/// `radbake preview --headless` of the bake's glTF camera, tone map none,
+/// EV 0; linear RGB per pixel (the PNG's sRGB decoded). None without a
+/// graphics adapter.
+fn preview(glb: &Path, png: &Path, camera: &str) -> Option<Vec<[f32; 3]>> {
+    use radbake::preview::{Options, Settings, ToneMap, Viewpoint};
+    let opts = Options {
+        scene: glb.to_path_buf(),
+        headless: true,
+        out: Some(png.to_path_buf()),
+        size: (SIZE, SIZE),
+        viewpoint: Viewpoint::Camera(camera.to_string()),
+        frames: None,
+        screenshot: None,
+        settings: Settings {
+            tone_map: ToneMap::None,
+            exposure_ev: 0.0,
+            ..Default::default()
+        },
+    };
+    if let Err(e) = radbake::preview::run(&opts) {
+        let text = format!("{e:#}");
+        assert!(
+            text.contains("no graphics adapter"),
+            "preview failed: {text}"
+        );
+        return None;
+    }
+    let img = image::open(png).unwrap().to_rgb8();
+    let lin = |c: u8| {
+        let c = c as f32 / 255.0;
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    Some(
+        img.pixels()
+            .map(|p| [lin(p[0]), lin(p[1]), lin(p[2])])
+            .collect(),
+    )
+}
+
+/// Linear RGBA to an sRGB PNG (clamped), for looking at.
+fn save_png(pixels: &[[f32; 4]], path: &Path) {
+    let enc = |v: f32| {
+        let v = v.clamp(0.0, 1.0);
+        let s = if v <= 0.0031308 {
+            v * 12.92
+        } else {
+            1.055 * v.powf(1.0 / 2.4) - 0.055
+        };
+        (s * 255.0).round() as u8
+    };
+    let img = image::RgbImage::from_fn(SIZE, SIZE, |x, y| {
+        let p = pixels[(y * SIZE + x) as usize];
+        image::Rgb([enc(p[0]), enc(p[1]), enc(p[2])])
+    });
+    img.save(path).unwrap();
+    eprintln!("wrote {}", path.display());
+}
+
+fn mean(pixels: impl Iterator<Item = [f32; 3]>) -> [f64; 3] {
+    let (mut s, mut n) = ([0f64; 3], 0f64);
+    for p in pixels {
+        (0..3).for_each(|c| s[c] += p[c] as f64);
+        n += 1.0;
+    }
+    s.map(|v| v / n.max(1.0))
+}
+
+fn no_adapter(what: &str) {
+    assert!(
+        std::env::var_os("RADBAKE_REQUIRE_GPU").is_none(),
+        "{what}: no graphics adapter, and RADBAKE_REQUIRE_GPU is set"
+    );
+    eprintln!("SKIPPED {what}: no graphics adapter on this machine");
+}
+
+#[test]
+fn bevy_renders_the_cornell_box_as_the_preview_does() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = temp_dir("cornell");
+    bake(&repo().join("scenes/cornell_box.gltf"), &dir, 40.0);
+    let glb = dir.join("scene.baked.glb");
+    // The glTF camera's node, as both renderers name it.
+    let camera = "camera";
+    let Some(want) = preview(&glb, &dir.join("preview.png"), camera) else {
+        return no_adapter("Bevy vs preview");
+    };
+    let run = run_bevy(&dir, true);
+
+    // Every mesh of the scene is lightmapped: each got its Lightmap.
+    assert!(
+        run.applied.missing.is_empty(),
+        "missing {:?}",
+        run.applied.missing
+    );
+    assert_eq!(run.applied.lightmapped, run.lightmaps.len());
+    assert!(
+        run.lightmaps.len() >= 8,
+        "{} mesh entities",
+        run.lightmaps.len()
+    );
+    for (node, rect) in &run.lightmaps {
+        assert!(rect.is_some(), "{node} has no Lightmap");
+    }
+    assert_eq!(run.applied.volumes, 1, "the bake's probe grid");
+
+    let got = run.pixels.expect("Bevy rendered nothing");
+    save_png(&got, &dir.join("bevy.png"));
+    // The preview's PNG is clamped to [0, 1] (tone map none): so is Bevy's.
+    let clamp = |p: &[f32; 4]| {
+        [
+            p[0].clamp(0.0, 1.0),
+            p[1].clamp(0.0, 1.0),
+            p[2].clamp(0.0, 1.0),
+        ]
+    };
+    let (b, p) = (mean(got.iter().map(clamp)), mean(want.iter().copied()));
+    // And the unsaturated pixels alone (the lamp is over 1 in both).
+    let lit = |k: usize| want[k].iter().all(|&c| c < 0.99) && got[k][..3].iter().all(|&c| c < 0.99);
+    let keep: Vec<usize> = (0..want.len()).filter(|&k| lit(k)).collect();
+    let (b2, p2) = (
+        mean(keep.iter().map(|&k| clamp(&got[k]))),
+        mean(keep.iter().map(|&k| want[k])),
+    );
+    let ratio = |a: [f64; 3], b: [f64; 3]| (a[0] + a[1] + a[2]) / (b[0] + b[1] + b[2]);
+    eprintln!(
+        "mean linear radiance: Bevy {b:.4?}, preview {p:.4?}, ratio {:.4}; unsaturated ({} px): Bevy {b2:.4?}, preview {p2:.4?}, ratio {:.4}",
+        ratio(b, p),
+        keep.len(),
+        ratio(b2, p2)
+    );
+    for c in 0..3 {
+        assert!(
+            (b[c] / p[c] - 1.0).abs() <= 0.03,
+            "channel {c}: Bevy mean {:.4} vs preview {:.4} (over 3 %)",
+            b[c],
+            p[c]
+        );
+    }
+    assert!(
+        (ratio(b2, p2) - 1.0).abs() <= 0.03,
+        "unsaturated pixels differ by over 3 %"
+    );
+    assert!(keep.len() > want.len() / 2, "most pixels are not saturated");
+}
+
+#[test]
+fn instances_of_one_mesh_get_their_own_rectangles() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = temp_dir("instances");
+    // Cornell with its short block instanced twice more, at half size on
+    // the floor by the front wall.
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(repo().join("scenes/cornell_box.gltf")).unwrap())
+            .unwrap();
+    let nodes = doc["nodes"].as_array().unwrap().clone();
+    let (k, block) = nodes
+        .iter()
+        .enumerate()
+        .find(|(_, n)| {
+            n["name"]
+                .as_str()
+                .is_some_and(|s| s.to_lowercase().contains("short"))
+        })
+        .expect("a short block node");
+    let mesh = block["mesh"].clone();
+    let mut added = Vec::new();
+    for (i, dx) in [(1, 0.0), (2, 0.33)] {
+        let mut n = serde_json::json!({"name": format!("short_copy_{i}"), "mesh": mesh});
+        n["translation"] = serde_json::json!([dx, 0.0, 0.0]);
+        n["scale"] = serde_json::json!([0.5, 0.5, 0.5]);
+        added.push(n);
+    }
+    let first = nodes.len();
+    doc["nodes"].as_array_mut().unwrap().extend(added);
+    doc["scenes"][0]["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .extend([first, first + 1].map(|i| serde_json::json!(i)));
+    // (Its buffer is a data URI: the copy can live anywhere.)
+    let gltf = dir.join("instances.gltf");
+    std::fs::write(&gltf, serde_json::to_vec(&doc).unwrap()).unwrap();
+    bake(&gltf, &dir, 20.0);
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    let rect_of = |node: &str| -> Rect {
+        let i = manifest["instances"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|i| i["node"] == node)
+            .unwrap_or_else(|| panic!("{node} not in the manifest"));
+        let r: Vec<f32> = i["uv_rect"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap() as f32)
+            .collect();
+        Rect::new(r[0], r[1], r[2], r[3])
+    };
+    let run = run_bevy(&dir, false);
+    assert!(
+        run.applied.missing.is_empty(),
+        "missing {:?}",
+        run.applied.missing
+    );
+    let short = nodes[k]["name"].as_str().unwrap();
+    let mut seen = Vec::new();
+    for node in [short, "short_copy_1", "short_copy_2"] {
+        let rects: Vec<Rect> = run
+            .lightmaps
+            .iter()
+            .filter(|(n, _)| n == node)
+            .map(|(_, r)| r.unwrap_or_else(|| panic!("{node} has no Lightmap")))
+            .collect();
+        assert!(!rects.is_empty(), "no mesh entity under {node}");
+        let want = rect_of(node);
+        for r in &rects {
+            // uv_rect as Bevy packs it (unorm16) is not what we compare: the
+            // component's own f32 rectangle is the manifest's.
+            assert!(
+                (r.min - want.min).abs().max_element() < 1e-6,
+                "{node}: {r:?} vs {want:?}"
+            );
+            assert!(
+                (r.max - want.max).abs().max_element() < 1e-6,
+                "{node}: {r:?} vs {want:?}"
+            );
+        }
+        seen.push(want);
+    }
+    for i in 0..seen.len() {
+        for j in i + 1..seen.len() {
+            assert_ne!(seen[i], seen[j], "instances {i} and {j} share a rectangle");
+        }
+    }
+}
