@@ -228,6 +228,10 @@ fn run_unwrapper(
             page_size: None,
         },
         padding: config.padding,
+        // BC6H pages (`--ktx2 bc6h`): charts on whole 4 × 4 blocks, no
+        // block shared by two charts, page sizes multiples of 4 (as block
+        // compression and WebGPU's texture sizes need).
+        block_align: config.ktx2 == crate::config::Ktx2Mode::Bc6h,
         packing: match config.packing {
             Packing::Fast => uvunwrap::Packing::Fast,
             Packing::Shape => uvunwrap::Packing::Shape,

@@ -84,6 +84,10 @@ pub enum Ktx2Mode {
     /// `lightmap_<page>.ktx2` in `E5B9G9R9_UFLOAT_PACK32`, Zstandard
     /// supercompressed.
     Rgb9e5,
+    /// `lightmap_<page>.ktx2` in `BC6H_UFLOAT_BLOCK` (a quarter of RGB9E5's
+    /// size on the GPU), Zstandard supercompressed; the atlas then aligns
+    /// charts to 4 × 4 blocks.
+    Bc6h,
     /// No KTX2 pages.
     Off,
 }

@@ -96,7 +96,7 @@ pub struct BakeArgs {
     /// Final-gather rays per texel; 0 turns the final gather off [default: 128].
     #[arg(long)]
     pub final_gather: Option<u32>,
-    /// HDR lightmap pages as KTX2 for Bevy: `rgb9e5` (lightmap_<page>.ktx2) or `off` [default: rgb9e5].
+    /// HDR lightmap pages as KTX2 for Bevy (lightmap_<page>.ktx2): `rgb9e5`, `bc6h` or `off` [default: rgb9e5].
     #[arg(long, value_enum)]
     pub ktx2: Option<radbake::config::Ktx2Mode>,
     /// Light probes for dynamic objects: on or off [default: on].

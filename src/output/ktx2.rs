@@ -1,13 +1,17 @@
-//! KTX 2.0 files (Khronos, "KTX File Format Specification 2.0") of
-//! uncompressed `E5B9G9R9_UFLOAT_PACK32` images: Bevy's irradiance volumes
-//! ([`super::probes`]) and the HDR lightmap pages Bevy loads. The container
-//! is small enough to write by hand (the `ktx2` crate only reads); the
-//! tests read it back with that crate.
+//! KTX 2.0 files (Khronos, "KTX File Format Specification 2.0"):
+//! uncompressed `E5B9G9R9_UFLOAT_PACK32` images (Bevy's irradiance volumes,
+//! [`super::probes`], and the HDR lightmap pages) and `BC6H_UFLOAT_BLOCK`
+//! lightmap pages, encoded by Intel's ISPC Texture Compressor
+//! (`intel_tex_2`). The container is small enough to write by hand (the
+//! `ktx2` crate only reads); the tests read it back with that crate.
+
+use glam::Vec3;
+use rayon::prelude::*;
 
 /// `VK_FORMAT_E5B9G9R9_UFLOAT_PACK32`.
-use glam::Vec3;
-
 const VK_FORMAT_E5B9G9R9_UFLOAT_PACK32: u32 = 123;
+/// `VK_FORMAT_BC6H_UFLOAT_BLOCK`.
+const VK_FORMAT_BC6H_UFLOAT_BLOCK: u32 = 143;
 
 /// Packs linear RGB into RGB9E5 as the Vulkan specification's
 /// "Shared Exponent" section (from `EXT_texture_shared_exponent`) defines:
@@ -53,12 +57,9 @@ pub fn ktx2_rgb9e5_zstd(size: [u32; 3], texels: &[u32], level: i32) -> Vec<u8> {
 fn container(size: [u32; 3], texels: &[u32], zstd: Option<i32>) -> Vec<u8> {
     assert_eq!(texels.len(), (size[0] * size[1] * size[2].max(1)) as usize);
     let mut dfd: Vec<u32> = vec![
-        0,                       // total size, set below
-        0,                       // vendor Khronos, descriptor type basic
-        2 | (24 + 6 * 16) << 16, // version 2, block size
-        1 | 1 << 8 | 1 << 16,    // model RGBSDA, primaries BT.709, linear
-        0,                       // texel block dimensions 1×1×1×1
-        4,                       // bytes per plane 0
+        1 | 1 << 8 | 1 << 16, // model RGBSDA, primaries BT.709, linear
+        0,                    // texel block dimensions 1×1×1×1
+        4,                    // bytes per plane 0
         0,
     ];
     for ch in 0..3u32 {
@@ -68,15 +69,99 @@ fn container(size: [u32; 3], texels: &[u32], zstd: Option<i32>) -> Vec<u8> {
         // Shared exponent: 5 bits at 27, qualifier EXPONENT (0x20).
         dfd.extend([27 | 4 << 16 | (ch | 0x20) << 24, 0, 15, 31]);
     }
-    dfd[0] = (dfd.len() * 4) as u32;
+    let raw: Vec<u8> = texels.iter().flat_map(|t| t.to_le_bytes()).collect();
+    file(VK_FORMAT_E5B9G9R9_UFLOAT_PACK32, 4, size, &dfd, &raw, zstd)
+}
+
+/// A 2D KTX2 file of `width` × `height` linear RGB (`texels` row by row) in
+/// `BC6H_UFLOAT_BLOCK`, Zstandard supercompressed at `level`. Negative
+/// values and NaN become 0 and values clamp to half's largest, 65504 (BC6H
+/// unsigned holds half floats without sign). Encoded with
+/// `intel_tex_2::bc6h::basic_settings` (ISPC, deterministic), one band of
+/// 4 rows of blocks per task; the image is padded to whole 4 × 4 blocks by
+/// repeating its last row and column (the KTX2 size stays the image's).
+/// The data format descriptor is Khronos's for this format: colour model
+/// BC6H (133), 4 × 4 blocks of 16 bytes, one 128-bit FLOAT sample with
+/// lower 0 and upper 1.0.
+pub fn ktx2_bc6h_zstd(width: u32, height: u32, texels: &[Vec3], level: i32) -> Vec<u8> {
+    assert_eq!(texels.len(), (width * height) as usize);
+    let blocks = bc6h_blocks(width, height, texels);
+    let dfd = [
+        133 | 1 << 8 | 1 << 16, // model BC6H, primaries BT.709, linear
+        3 | 3 << 8,             // texel block dimensions 4×4×1×1
+        16,                     // bytes per plane 0
+        0,
+        127 << 16 | 0x80 << 24, // bits 0..127, channel colour, FLOAT
+        0,
+        0,
+        0x3F80_0000,
+    ];
+    file(
+        VK_FORMAT_BC6H_UFLOAT_BLOCK,
+        1,
+        [width, height, 0],
+        &dfd,
+        &blocks,
+        Some(level),
+    )
+}
+
+/// BC6H blocks of an image, row of blocks by row of blocks.
+fn bc6h_blocks(width: u32, height: u32, texels: &[Vec3]) -> Vec<u8> {
+    use intel_tex_2::{bc6h, RgbaSurface};
+    let (bw, bh) = (width.div_ceil(4), height.div_ceil(4));
+    let half = |v: f32| {
+        let v = if v > 0.0 { v.min(65504.0) } else { 0.0 };
+        half::f16::from_f32(v).to_le_bytes()
+    };
+    let settings = bc6h::basic_settings();
+    let bands: Vec<Vec<u8>> = (0..bh)
+        .into_par_iter()
+        .map(|by| {
+            // One row of blocks: 4 rows of texels, RGBA half, padded.
+            let mut data = Vec::with_capacity((bw * 4 * 4 * 8) as usize);
+            for y in by * 4..by * 4 + 4 {
+                let row = y.min(height - 1) * width;
+                for x in 0..bw * 4 {
+                    let c = texels[(row + x.min(width - 1)) as usize];
+                    for v in [c.x, c.y, c.z, 1.0] {
+                        data.extend(half(v));
+                    }
+                }
+            }
+            let surface = RgbaSurface {
+                data: &data,
+                width: bw * 4,
+                height: 4,
+                stride: bw * 4 * 8,
+            };
+            bc6h::compress_blocks(&settings, &surface)
+        })
+        .collect();
+    bands.concat()
+}
+
+/// The KTX2 container of one level: `dfd` is the basic descriptor after its
+/// two header words (total size, vendor/type) and its version/size word.
+fn file(
+    vk_format: u32,
+    type_size: u32,
+    size: [u32; 3],
+    dfd: &[u32],
+    raw: &[u8],
+    zstd: Option<i32>,
+) -> Vec<u8> {
+    let samples = (dfd.len() - 4) / 4;
+    let mut words = vec![0, 0, 2 | ((24 + 16 * samples) as u32) << 16];
+    words.extend_from_slice(dfd);
+    words[0] = (words.len() * 4) as u32;
     let header_len = 80 + 24; // header + index, one level
     let dfd_off = header_len as u32;
-    let dfd_len = dfd[0];
+    let dfd_len = words[0];
     let data_off = (dfd_off + dfd_len) as u64;
-    let raw: Vec<u8> = texels.iter().flat_map(|t| t.to_le_bytes()).collect();
     let data = match zstd {
-        Some(level) => zstd::bulk::compress(&raw, level).expect("zstd compression in memory"),
-        None => raw.clone(),
+        Some(level) => zstd::bulk::compress(raw, level).expect("zstd compression in memory"),
+        None => raw.to_vec(),
     };
     let data_len = data.len() as u64;
     let mut out = Vec::with_capacity(data_off as usize + data_len as usize);
@@ -84,8 +169,8 @@ fn container(size: [u32; 3], texels: &[u32], zstd: Option<i32>) -> Vec<u8> {
         0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A,
     ]);
     for w in [
-        VK_FORMAT_E5B9G9R9_UFLOAT_PACK32,
-        4, // type size
+        vk_format,
+        type_size,
         size[0],
         size[1],
         size[2],
@@ -105,7 +190,7 @@ fn container(size: [u32; 3], texels: &[u32], zstd: Option<i32>) -> Vec<u8> {
     for v in [data_off, data_len, raw.len() as u64] {
         out.extend(v.to_le_bytes());
     }
-    for w in dfd {
+    for w in words {
         out.extend(w.to_le_bytes());
     }
     out.extend(data);

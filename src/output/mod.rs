@@ -322,19 +322,27 @@ pub fn write_engine_outputs(
         let name = format!("lightmap_{page}_srgb.png");
         write_bytes_atomic(&out_dir.join(&name), &e.png)?;
         written.push(out_dir.join(&name));
-        let ktx2 = (bake.config.ktx2 == crate::config::Ktx2Mode::Rgb9e5)
-            .then(|| format!("lightmap_{page}.ktx2"));
+        use crate::config::Ktx2Mode;
+        let mode = bake.config.ktx2;
+        let ktx2 = (mode != Ktx2Mode::Off).then(|| format!("lightmap_{page}.ktx2"));
         if let Some(k) = &ktx2 {
-            let texels: Vec<u32> = lightmaps.pages[page]
-                .iter()
-                .map(|v| ktx2::rgb9e5(*v))
-                .collect();
-            let bytes = ktx2::ktx2_rgb9e5_zstd([lightmaps.width, lightmaps.height, 0], &texels, 9);
+            let (w, h, texels) = (lightmaps.width, lightmaps.height, &lightmaps.pages[page]);
+            let bytes = if mode == Ktx2Mode::Bc6h {
+                ktx2::ktx2_bc6h_zstd(w, h, texels, 9)
+            } else {
+                let packed: Vec<u32> = texels.iter().map(|v| ktx2::rgb9e5(*v)).collect();
+                ktx2::ktx2_rgb9e5_zstd([w, h, 0], &packed, 9)
+            };
             write_bytes_atomic(&out_dir.join(k), &bytes)?;
             written.push(out_dir.join(k));
         }
         pages.push(serde_json::json!({
             "ktx2": ktx2,
+            "ktx2_format": match bake.config.ktx2 {
+                crate::config::Ktx2Mode::Rgb9e5 => serde_json::json!("rgb9e5"),
+                crate::config::Ktx2Mode::Bc6h => serde_json::json!("bc6h"),
+                crate::config::Ktx2Mode::Off => serde_json::Value::Null,
+            },
             "page": page,
             "exr": format!("lightmap_{page}.exr"),
             "png": name,

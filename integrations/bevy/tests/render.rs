@@ -42,10 +42,11 @@ fn temp_dir(name: &str) -> PathBuf {
 
 /// Bakes `gltf` into `out` (radbake's library, the CLI's defaults but the
 /// texel density).
-fn bake(gltf: &Path, out: &Path, texels_per_meter: f32) {
+fn bake(gltf: &Path, out: &Path, texels_per_meter: f32, ktx2: radbake::config::Ktx2Mode) {
     let scene = radbake::scene::load(gltf, &Default::default()).unwrap();
     let config = radbake::BakeConfig {
         texels_per_meter,
+        ktx2,
         ..Default::default()
     };
     let bake = radbake::bake(&scene, &config, &radbake::Silent).unwrap();
@@ -310,9 +311,19 @@ fn no_adapter(what: &str) {
 
 #[test]
 fn bevy_renders_the_cornell_box_as_the_preview_does() {
+    cornell_in_bevy(radbake::config::Ktx2Mode::Rgb9e5);
+}
+
+/// The same with BC6H pages (`--ktx2 bc6h`): Bevy loads them as they are.
+#[test]
+fn bevy_renders_bc6h_pages_as_the_preview_does() {
+    cornell_in_bevy(radbake::config::Ktx2Mode::Bc6h);
+}
+
+fn cornell_in_bevy(ktx2: radbake::config::Ktx2Mode) {
     let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let dir = temp_dir("cornell");
-    bake(&repo().join("scenes/cornell_box.gltf"), &dir, 40.0);
+    let dir = temp_dir(&format!("cornell-{ktx2:?}"));
+    bake(&repo().join("scenes/cornell_box.gltf"), &dir, 40.0, ktx2);
     let glb = dir.join("scene.baked.glb");
     // The glTF camera's node, as both renderers name it.
     let camera = "camera";
@@ -358,7 +369,7 @@ fn bevy_renders_the_cornell_box_as_the_preview_does() {
     );
     let ratio = |a: [f64; 3], b: [f64; 3]| (a[0] + a[1] + a[2]) / (b[0] + b[1] + b[2]);
     eprintln!(
-        "mean linear radiance: Bevy {b:.4?}, preview {p:.4?}, ratio {:.4}; unsaturated ({} px): Bevy {b2:.4?}, preview {p2:.4?}, ratio {:.4}",
+        "{ktx2:?} pages: mean linear radiance: Bevy {b:.4?}, preview {p:.4?}, ratio {:.4}; unsaturated ({} px): Bevy {b2:.4?}, preview {p2:.4?}, ratio {:.4}",
         ratio(b, p),
         keep.len(),
         ratio(b2, p2)
@@ -414,7 +425,7 @@ fn instances_of_one_mesh_get_their_own_rectangles() {
     // (Its buffer is a data URI: the copy can live anywhere.)
     let gltf = dir.join("instances.gltf");
     std::fs::write(&gltf, serde_json::to_vec(&doc).unwrap()).unwrap();
-    bake(&gltf, &dir, 20.0);
+    bake(&gltf, &dir, 20.0, radbake::config::Ktx2Mode::Rgb9e5);
     let manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
     let rect_of = |node: &str| -> Rect {
