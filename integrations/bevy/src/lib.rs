@@ -47,7 +47,7 @@
 //! the lightmapped and probe-lit light.
 
 use bevy::asset::io::Reader;
-use bevy::asset::{AssetLoader, LoadContext};
+use bevy::asset::{AssetLoader, LoadContext, RecursiveDependencyLoadState};
 use bevy::gltf::{Gltf, GltfMesh, GltfNode};
 use bevy::light::{IrradianceVolume, LightProbe};
 use bevy::pbr::Lightmap;
@@ -136,6 +136,11 @@ pub struct RadbakeApplied {
     /// Lights switched off for lightmapped diffuse.
     pub lights: usize,
 }
+
+/// On a [`RadbakeBake`] entity whose manifest, glTF or one of their files
+/// failed to load: the error, also logged once.
+#[derive(Component, Clone, Debug)]
+pub struct RadbakeFailed(pub String);
 
 /// `manifest.json` of a bake, with its files' handles.
 #[derive(Asset, TypePath, Debug)]
@@ -289,14 +294,23 @@ fn ambient_off_lightmapped(ambient: Option<ResMut<GlobalAmbientLight>>) {
     }
 }
 
-/// Gives a [`RadbakeBake`] entity its glTF scene once the manifest is loaded.
+/// Gives a [`RadbakeBake`] entity its glTF scene once the manifest is
+/// loaded, or [`RadbakeFailed`] if it or a file it names failed to load.
 fn spawn_baked_scenes(
     mut commands: Commands,
     bakes: Waiting,
+    server: Res<AssetServer>,
     manifests: Res<Assets<RadbakeManifest>>,
     gltfs: Res<Assets<Gltf>>,
 ) {
     for (entity, bake) in &bakes {
+        if let RecursiveDependencyLoadState::Failed(e) =
+            server.recursive_dependency_load_state(&bake.manifest)
+        {
+            error!("radbake: the bake could not be loaded: {e}");
+            commands.entity(entity).insert(RadbakeFailed(e.to_string()));
+            continue;
+        }
         let Some(gltf) = manifests
             .get(&bake.manifest)
             .and_then(|m| gltfs.get(&m.gltf))
@@ -320,7 +334,11 @@ type Waiting<'w, 's> = Query<
     'w,
     's,
     (Entity, &'static RadbakeBake),
-    (Without<WorldAssetRoot>, Without<RadbakeApplied>),
+    (
+        Without<WorldAssetRoot>,
+        Without<RadbakeApplied>,
+        Without<RadbakeFailed>,
+    ),
 >;
 /// Bakes whose scene is spawned or spawning, not yet applied.
 type Spawned<'w, 's> =

@@ -18,7 +18,7 @@ use bevy::render::render_resource::{TextureFormat, TextureUsages};
 use bevy::render::RenderPlugin;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
-use bevy_radbake::{RadbakeApplied, RadbakeBake, RadbakePlugin};
+use bevy_radbake::{RadbakeApplied, RadbakeBake, RadbakeFailed, RadbakePlugin};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -478,5 +478,64 @@ fn instances_of_one_mesh_get_their_own_rectangles() {
         for j in i + 1..seen.len() {
             assert_ne!(seen[i], seen[j], "instances {i} and {j} share a rectangle");
         }
+    }
+}
+
+/// A bake folder whose manifest is not one, or names a file that is not
+/// there: `RadbakeFailed` with the reason, not a hang.
+#[test]
+fn a_broken_bake_is_a_clear_error() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    for (name, manifest, want) in [
+        ("garbage", "{ this is not JSON", "not a radbake manifest"),
+        (
+            // Neither file is there: whichever is found missing first.
+            "missing-files",
+            r#"{"baked_gltf": "scene.baked.glb", "pages": [{"ktx2": "lightmap_0.ktx2"}], "instances": [], "probes": null}"#,
+            "Path not found",
+        ),
+    ] {
+        let dir = temp_dir(name);
+        std::fs::write(dir.join("manifest.json"), manifest).unwrap();
+        let mut app = App::new();
+        app.add_plugins(
+            DefaultPlugins
+                .set(AssetPlugin {
+                    file_path: dir.to_string_lossy().into_owned(),
+                    ..default()
+                })
+                .set(WindowPlugin {
+                    primary_window: None,
+                    exit_condition: ExitCondition::DontExit,
+                    close_when_requested: false,
+                    ..default()
+                })
+                .disable::<WinitPlugin>(),
+        )
+        .add_plugins(RadbakePlugin::default())
+        .add_systems(
+            Startup,
+            |mut commands: Commands, assets: Res<AssetServer>| {
+                commands.spawn(RadbakeBake::load(&assets, ""));
+            },
+        );
+        app.finish();
+        app.cleanup();
+        // Loading is asynchronous: frames until the outcome, 60 s at most.
+        let (mut failed, start) = (None, std::time::Instant::now());
+        while start.elapsed().as_secs() < 60 {
+            app.update();
+            let world = app.world_mut();
+            if let Some(f) = world.query::<&RadbakeFailed>().iter(world).next() {
+                failed = Some(f.0.clone());
+                break;
+            }
+        }
+        let failed = failed.unwrap_or_else(|| panic!("{name}: no RadbakeFailed within 60 s"));
+        eprintln!("{name}: {failed}");
+        assert!(
+            failed.contains(want),
+            "{name}: {failed:?} does not mention {want:?}"
+        );
     }
 }
