@@ -13,20 +13,6 @@
 
 use std::path::Path;
 
-fn read_exr(path: &Path) -> (usize, Vec<[f32; 3]>) {
-    exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |res, _| (res.width(), vec![[0.0f32; 3]; res.width() * res.height()]),
-        |(w, px): &mut (usize, Vec<[f32; 3]>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            px[pos.y() * *w + pos.x()] = [r, g, b];
-        },
-    )
-    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-    .layer_data
-    .channel_data
-    .pixels
-}
-
 fn decode(bytes: &[u8]) -> (usize, usize, Vec<[f32; 3]>) {
     let reader = ktx2::Reader::new(bytes).expect("a KTX2 file");
     let h = reader.header();
@@ -89,7 +75,10 @@ fn main() {
         };
         let exr = page["exr"].as_str().unwrap();
         let png = page["png"].as_str().unwrap();
-        let (w, want) = read_exr(&dir.join(exr));
+        let (w, _, want) =
+            radbake::trace::render::read_exr_rgb(&dir.join(exr)).unwrap_or_else(|e| panic!("{e}"));
+        let (w, want): (usize, Vec<[f32; 3]>) =
+            (w as usize, want.iter().map(|v| v.to_array()).collect());
         let (kw, kh, got) = decode(&std::fs::read(dir.join(name)).unwrap());
         assert_eq!((kw, kh), (w, want.len() / w), "page size");
         let (mut sq, mut sum, mut n, mut worst) = (0f64, 0f64, 0usize, 0f64);

@@ -143,8 +143,12 @@ pub fn load_bake(scene: &crate::scene::Scene, dir: &Path) -> Result<BakedLightma
     })
 }
 
-/// Reads the first RGB(A) layer of an OpenEXR file as linear RGB.
-fn read_exr_rgb(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
+/// Reads the first RGB(A) layer of an OpenEXR file as linear RGB: (width,
+/// height, pixels row by row).
+///
+/// # Errors
+/// [`crate::Error::Invalid`] naming the file when it is not a readable EXR.
+pub fn read_exr_rgb(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
     use exr::prelude::*;
     let image = read_first_rgba_layer_from_file(
         path,

@@ -68,31 +68,34 @@ struct Target(Handle<Image>);
 #[derive(Resource, Clone, Default)]
 struct Captured(Arc<Mutex<Option<Vec<u8>>>>);
 
+/// Bevy's default plugins, headless (no window, no winit), assets from
+/// `dir`.
+fn headless_plugins(dir: &Path) -> bevy::app::PluginGroupBuilder {
+    DefaultPlugins
+        .set(AssetPlugin {
+            file_path: dir.to_string_lossy().into_owned(),
+            ..default()
+        })
+        .set(WindowPlugin {
+            primary_window: None,
+            exit_condition: ExitCondition::DontExit,
+            close_when_requested: false,
+            ..default()
+        })
+        .disable::<WinitPlugin>()
+}
+
 /// Loads the bake in `dir` with `RadbakePlugin`; with `render`, renders it
 /// from its first glTF camera, linear (HDR target, no tone mapping, no
 /// dither, Bevy's default exposure), and reads the image back.
 fn run_bevy(dir: &Path, render: bool) -> BevyRun {
     let mut app = App::new();
-    app.add_plugins(
-        DefaultPlugins
-            .set(AssetPlugin {
-                file_path: dir.to_string_lossy().into_owned(),
-                ..default()
-            })
-            .set(WindowPlugin {
-                primary_window: None,
-                exit_condition: ExitCondition::DontExit,
-                close_when_requested: false,
-                ..default()
-            })
-            .set(RenderPlugin {
-                // Every pipeline ready when first used: no frame drawn
-                // with a piece missing.
-                synchronous_pipeline_compilation: true,
-                ..default()
-            })
-            .disable::<WinitPlugin>(),
-    )
+    app.add_plugins(headless_plugins(dir).set(RenderPlugin {
+        // Every pipeline ready when first used: no frame drawn
+        // with a piece missing.
+        synchronous_pipeline_compilation: true,
+        ..default()
+    }))
     .add_plugins(ScheduleRunnerPlugin::default())
     .add_plugins(RadbakePlugin::default())
     .init_resource::<Captured>()
@@ -498,27 +501,14 @@ fn a_broken_bake_is_a_clear_error() {
         let dir = temp_dir(name);
         std::fs::write(dir.join("manifest.json"), manifest).unwrap();
         let mut app = App::new();
-        app.add_plugins(
-            DefaultPlugins
-                .set(AssetPlugin {
-                    file_path: dir.to_string_lossy().into_owned(),
-                    ..default()
-                })
-                .set(WindowPlugin {
-                    primary_window: None,
-                    exit_condition: ExitCondition::DontExit,
-                    close_when_requested: false,
-                    ..default()
-                })
-                .disable::<WinitPlugin>(),
-        )
-        .add_plugins(RadbakePlugin::default())
-        .add_systems(
-            Startup,
-            |mut commands: Commands, assets: Res<AssetServer>| {
-                commands.spawn(RadbakeBake::load(&assets, ""));
-            },
-        );
+        app.add_plugins(headless_plugins(&dir))
+            .add_plugins(RadbakePlugin::default())
+            .add_systems(
+                Startup,
+                |mut commands: Commands, assets: Res<AssetServer>| {
+                    commands.spawn(RadbakeBake::load(&assets, ""));
+                },
+            );
         app.finish();
         app.cleanup();
         // Loading is asynchronous: frames until the outcome, 60 s at most.
