@@ -553,3 +553,42 @@ fn ktx2_bc6h_pages_decode_to_the_exr() {
     );
     assert!(worst <= 1.0, "a BC6H texel is off by {worst} × its bound");
 }
+
+/// `--directional sh`: each SH page also as `lightmap_<page>_sh_<c>.ktx2`
+/// in `R16G16B16A16_SFLOAT` (signed: the linear coefficients are negative
+/// where light comes from the −axis side), read back with the `ktx2`
+/// crate: the EXR's values to half precision (relative 2⁻¹¹, or half's
+/// smallest normal), negative values included.
+#[test]
+fn ktx2_sh_pages_are_signed_half_floats() {
+    let dir = temp_dir("outputs-ktx2-sh");
+    bake_cornell(&dir, &["--directional", "sh"], None);
+    let mut negative = 0usize;
+    for c in ["a", "x", "y", "z"] {
+        let bytes = std::fs::read(dir.join(format!("lightmap_0_sh_{c}.ktx2"))).unwrap();
+        let reader = ktx2::Reader::new(&bytes[..]).unwrap();
+        let h = reader.header();
+        assert_eq!(h.format, Some(ktx2::Format::R16G16B16A16_SFLOAT));
+        assert_eq!(
+            h.supercompression_scheme,
+            Some(ktx2::SupercompressionScheme::Zstandard)
+        );
+        let level = reader.levels().next().unwrap();
+        let data = zstd::bulk::decompress(level.data, 1 << 28).unwrap();
+        let (w, px) = &read_exr(&dir.join(format!("lightmap_0_sh_{c}.exr")));
+        assert_eq!(h.pixel_width as usize, *w);
+        assert_eq!(data.len(), px.len() * 8);
+        for (chunk, want) in data.chunks_exact(8).zip(px) {
+            for k in 0..3 {
+                let got = half::f16::from_le_bytes([chunk[2 * k], chunk[2 * k + 1]]).to_f32();
+                let tol = want[k].abs() * 2f32.powi(-11) + 6.2e-5;
+                assert!((got - want[k]).abs() <= tol, "sh_{c}: {got} vs {}", want[k]);
+                negative += (want[k] < 0.0) as usize;
+            }
+        }
+    }
+    assert!(
+        negative > 0,
+        "no negative coefficient to test the sign with"
+    );
+}

@@ -10,6 +10,8 @@ use rayon::prelude::*;
 
 /// `VK_FORMAT_E5B9G9R9_UFLOAT_PACK32`.
 const VK_FORMAT_E5B9G9R9_UFLOAT_PACK32: u32 = 123;
+/// `VK_FORMAT_R16G16B16A16_SFLOAT`.
+const VK_FORMAT_R16G16B16A16_SFLOAT: u32 = 97;
 /// `VK_FORMAT_BC6H_UFLOAT_BLOCK`.
 const VK_FORMAT_BC6H_UFLOAT_BLOCK: u32 = 143;
 
@@ -102,6 +104,50 @@ pub fn ktx2_bc6h_zstd(width: u32, height: u32, texels: &[Vec3], level: i32) -> V
         [width, height, 0],
         &dfd,
         &blocks,
+        Some(level),
+    )
+}
+
+/// A 2D KTX2 file of `width` × `height` signed linear RGB (`texels` row by
+/// row) in `R16G16B16A16_SFLOAT` (alpha 1), Zstandard supercompressed at
+/// `level`: for pages with negative values (the SH pages' linear
+/// coefficients), which RGB9E5 and unsigned BC6H cannot hold. Values clamp
+/// to ±65504. The data format descriptor is Khronos's basic one: RGBSDA,
+/// four 16-bit samples qualified FLOAT | SIGNED, lower −1.0, upper 1.0.
+pub fn ktx2_rgba16f_zstd(width: u32, height: u32, texels: &[Vec3], level: i32) -> Vec<u8> {
+    assert_eq!(texels.len(), (width * height) as usize);
+    let mut raw = Vec::with_capacity(texels.len() * 8);
+    for c in texels {
+        for v in [c.x, c.y, c.z, 1.0] {
+            let v = if v.is_nan() {
+                0.0
+            } else {
+                v.clamp(-65504.0, 65504.0)
+            };
+            raw.extend(half::f16::from_f32(v).to_le_bytes());
+        }
+    }
+    let mut dfd = vec![
+        1 | 1 << 8 | 1 << 16, // model RGBSDA, primaries BT.709, linear
+        0,                    // texel block dimensions 1×1×1×1
+        8,                    // bytes per plane 0
+        0,
+    ];
+    // R, G, B, A (channel 15): 16 bits each, FLOAT | SIGNED (0xC0).
+    for (k, ch) in [0u32, 1, 2, 15].into_iter().enumerate() {
+        dfd.extend([
+            (16 * k as u32) | 15 << 16 | (ch | 0xC0) << 24,
+            0,
+            0xBF80_0000,
+            0x3F80_0000,
+        ]);
+    }
+    file(
+        VK_FORMAT_R16G16B16A16_SFLOAT,
+        2,
+        [width, height, 0],
+        &dfd,
+        &raw,
         Some(level),
     )
 }

@@ -193,7 +193,9 @@ pub fn write_lightmaps(out_dir: &Path, lightmaps: &Lightmaps) -> Result<Vec<Path
 
 /// Writes the optional maps of a bake: directional pages
 /// `lightmap_<page>_sh_{a,x,y,z}.exr` (irradiance / π for a normal n =
-/// a + n_x x + n_y y + n_z z, world space) and AO pages `ao_<page>.png`
+/// a + n_x x + n_y y + n_z z, world space), each also as
+/// `lightmap_<page>_sh_{a,x,y,z}.ktx2` (`R16G16B16A16_SFLOAT`, signed;
+/// unless `--ktx2 off`), and AO pages `ao_<page>.png`
 /// (8-bit linear, 1 = unoccluded). Returns the paths written.
 ///
 /// # Errors
@@ -210,6 +212,13 @@ pub fn write_extra_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
                 let path = out_dir.join(format!("lightmap_{page}_sh_{name}.exr"));
                 write_exr(&path, lm, page)?;
                 written.push(path);
+                if bake.config.ktx2 != crate::config::Ktx2Mode::Off {
+                    // Signed (the linear coefficients): half floats.
+                    let path = out_dir.join(format!("lightmap_{page}_sh_{name}.ktx2"));
+                    let bytes = ktx2::ktx2_rgba16f_zstd(lm.width, lm.height, &lm.pages[page], 9);
+                    write_bytes_atomic(&path, &bytes)?;
+                    written.push(path);
+                }
             }
         }
     }
