@@ -563,8 +563,16 @@ fn ktx2_bc6h_pages_decode_to_the_exr() {
 fn ktx2_sh_pages_are_signed_half_floats() {
     let dir = temp_dir("outputs-ktx2-sh");
     bake_cornell(&dir, &["--directional", "sh"], None);
+    let manifest = json(&dir.join("manifest.json"));
     let mut negative = 0usize;
     for c in ["a", "x", "y", "z"] {
+        let listed = &manifest["pages"][0]["sh"][c];
+        assert_eq!(
+            listed["ktx2"],
+            format!("lightmap_0_sh_{c}.ktx2"),
+            "{listed}"
+        );
+        assert_eq!(listed["ktx2_format"], "rgba16f");
         let bytes = std::fs::read(dir.join(format!("lightmap_0_sh_{c}.ktx2"))).unwrap();
         let reader = ktx2::Reader::new(&bytes[..]).unwrap();
         let h = reader.header();

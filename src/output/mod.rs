@@ -358,6 +358,23 @@ pub fn write_engine_outputs(
             "png_encoding": "srgb, dithered; one scale per instance rectangle (instances[].png_scale), the page's largest value outside them",
             "png_page_scale": e.page_scale,
         }));
+        if bake.maps.sh.is_some() {
+            // The directional pages `write_extra_maps` writes.
+            let ktx2_on = bake.config.ktx2 != crate::config::Ktx2Mode::Off;
+            let sh: serde_json::Map<String, serde_json::Value> = ["a", "x", "y", "z"]
+                .iter()
+                .map(|c| {
+                    let file = |ext: &str| format!("lightmap_{page}_sh_{c}.{ext}");
+                    let entry = serde_json::json!({
+                        "exr": file("exr"),
+                        "ktx2": ktx2_on.then(|| file("ktx2")),
+                        "ktx2_format": ktx2_on.then_some("rgba16f"),
+                    });
+                    (c.to_string(), entry)
+                })
+                .collect();
+            pages[page]["sh"] = serde_json::Value::Object(sh);
+        }
     }
     let scale_of = |i: usize| encoded.iter().find_map(|e| e.scales[i]).unwrap_or(1.0);
     let glb_name = format!("{stem}.baked.glb");
