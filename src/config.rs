@@ -92,6 +92,17 @@ pub enum Ktx2Mode {
     Off,
 }
 
+impl Ktx2Mode {
+    /// The format's name in `manifest.json` (`ktx2_format`); None for `off`.
+    pub fn name(self) -> Option<&'static str> {
+        match self {
+            Ktx2Mode::Rgb9e5 => Some("rgb9e5"),
+            Ktx2Mode::Bc6h => Some("bc6h"),
+            Ktx2Mode::Off => None,
+        }
+    }
+}
+
 /// How texel values are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]

@@ -475,6 +475,24 @@ fn ktx2_pages_decode_to_the_exr() {
     assert!(json(&off.join("manifest.json"))["pages"][0]["ktx2"].is_null());
 }
 
+/// A one-level KTX2 file of `format`, Zstandard supercompressed, read
+/// with the `ktx2` crate: its header and its level decompressed (checked
+/// against the level index's uncompressed length).
+fn zstd_ktx2(path: &Path, format: ktx2::Format) -> (ktx2::Header, Vec<u8>) {
+    let bytes = std::fs::read(path).unwrap();
+    let reader = ktx2::Reader::new(&bytes[..]).unwrap();
+    let h = reader.header();
+    assert_eq!(h.format, Some(format), "{}", path.display());
+    assert_eq!(
+        h.supercompression_scheme,
+        Some(ktx2::SupercompressionScheme::Zstandard)
+    );
+    let level = reader.levels().next().unwrap();
+    let data = zstd::bulk::decompress(level.data, 1 << 28).unwrap();
+    assert_eq!(level.uncompressed_byte_length as usize, data.len());
+    (h, data)
+}
+
 /// `--ktx2 bc6h`: `lightmap_<page>.ktx2` in `BC6H_UFLOAT_BLOCK` (Zstandard
 /// supercompressed), read back with the `ktx2` crate and decoded by
 /// `bcdec_rs` (a port of bcdec, sharing nothing with the encoder). The
@@ -491,17 +509,7 @@ fn ktx2_bc6h_pages_decode_to_the_exr() {
     let manifest = json(&dir.join("manifest.json"));
     assert_eq!(manifest["pages"][0]["ktx2_format"], "bc6h");
     let name = manifest["pages"][0]["ktx2"].as_str().unwrap().to_owned();
-    let bytes = std::fs::read(dir.join(&name)).unwrap();
-    let reader = ktx2::Reader::new(&bytes[..]).unwrap();
-    let h = reader.header();
-    assert_eq!(h.format, Some(ktx2::Format::BC6H_UFLOAT_BLOCK));
-    assert_eq!(
-        h.supercompression_scheme,
-        Some(ktx2::SupercompressionScheme::Zstandard)
-    );
-    let level = reader.levels().next().unwrap();
-    let data = zstd::bulk::decompress(level.data, 1 << 28).unwrap();
-    assert_eq!(level.uncompressed_byte_length as usize, data.len());
+    let (h, data) = zstd_ktx2(&dir.join(&name), ktx2::Format::BC6H_UFLOAT_BLOCK);
     let (w, px) = &read_exr(&dir.join("lightmap_0.exr"));
     let (w, hgt) = (*w, px.len() / *w);
     assert_eq!((h.pixel_width as usize, h.pixel_height as usize), (w, hgt));
@@ -573,16 +581,10 @@ fn ktx2_sh_pages_are_signed_half_floats() {
             "{listed}"
         );
         assert_eq!(listed["ktx2_format"], "rgba16f");
-        let bytes = std::fs::read(dir.join(format!("lightmap_0_sh_{c}.ktx2"))).unwrap();
-        let reader = ktx2::Reader::new(&bytes[..]).unwrap();
-        let h = reader.header();
-        assert_eq!(h.format, Some(ktx2::Format::R16G16B16A16_SFLOAT));
-        assert_eq!(
-            h.supercompression_scheme,
-            Some(ktx2::SupercompressionScheme::Zstandard)
+        let (h, data) = zstd_ktx2(
+            &dir.join(format!("lightmap_0_sh_{c}.ktx2")),
+            ktx2::Format::R16G16B16A16_SFLOAT,
         );
-        let level = reader.levels().next().unwrap();
-        let data = zstd::bulk::decompress(level.data, 1 << 28).unwrap();
         let (w, px) = &read_exr(&dir.join(format!("lightmap_0_sh_{c}.exr")));
         assert_eq!(h.pixel_width as usize, *w);
         assert_eq!(data.len(), px.len() * 8);

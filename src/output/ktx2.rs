@@ -119,12 +119,7 @@ pub fn ktx2_rgba16f_zstd(width: u32, height: u32, texels: &[Vec3], level: i32) -
     let mut raw = Vec::with_capacity(texels.len() * 8);
     for c in texels {
         for v in [c.x, c.y, c.z, 1.0] {
-            let v = if v.is_nan() {
-                0.0
-            } else {
-                v.clamp(-65504.0, 65504.0)
-            };
-            raw.extend(half::f16::from_f32(v).to_le_bytes());
+            raw.extend(half_le(v, -65504.0));
         }
     }
     let mut dfd = vec![
@@ -152,14 +147,21 @@ pub fn ktx2_rgba16f_zstd(width: u32, height: u32, texels: &[Vec3], level: i32) -
     )
 }
 
+/// `v` as a little-endian half float, clamped to [`min`, 65504] (half's
+/// largest); NaN becomes 0.
+fn half_le(v: f32, min: f32) -> [u8; 2] {
+    let v = if v.is_nan() {
+        0.0
+    } else {
+        v.clamp(min, 65504.0)
+    };
+    half::f16::from_f32(v).to_le_bytes()
+}
+
 /// BC6H blocks of an image, row of blocks by row of blocks.
 fn bc6h_blocks(width: u32, height: u32, texels: &[Vec3]) -> Vec<u8> {
     use intel_tex_2::{bc6h, RgbaSurface};
     let (bw, bh) = (width.div_ceil(4), height.div_ceil(4));
-    let half = |v: f32| {
-        let v = if v > 0.0 { v.min(65504.0) } else { 0.0 };
-        half::f16::from_f32(v).to_le_bytes()
-    };
     let settings = bc6h::basic_settings();
     let bands: Vec<Vec<u8>> = (0..bh)
         .into_par_iter()
@@ -171,7 +173,7 @@ fn bc6h_blocks(width: u32, height: u32, texels: &[Vec3]) -> Vec<u8> {
                 for x in 0..bw * 4 {
                     let c = texels[(row + x.min(width - 1)) as usize];
                     for v in [c.x, c.y, c.z, 1.0] {
-                        data.extend(half(v));
+                        data.extend(half_le(v, 0.0));
                     }
                 }
             }

@@ -347,11 +347,7 @@ pub fn write_engine_outputs(
         }
         pages.push(serde_json::json!({
             "ktx2": ktx2,
-            "ktx2_format": match bake.config.ktx2 {
-                crate::config::Ktx2Mode::Rgb9e5 => serde_json::json!("rgb9e5"),
-                crate::config::Ktx2Mode::Bc6h => serde_json::json!("bc6h"),
-                crate::config::Ktx2Mode::Off => serde_json::Value::Null,
-            },
+            "ktx2_format": mode.name(),
             "page": page,
             "exr": format!("lightmap_{page}.exr"),
             "png": name,
@@ -360,7 +356,7 @@ pub fn write_engine_outputs(
         }));
         if bake.maps.sh.is_some() {
             // The directional pages `write_extra_maps` writes.
-            let ktx2_on = bake.config.ktx2 != crate::config::Ktx2Mode::Off;
+            let ktx2_on = mode != Ktx2Mode::Off;
             let sh: serde_json::Map<String, serde_json::Value> = ["a", "x", "y", "z"]
                 .iter()
                 .map(|c| {
