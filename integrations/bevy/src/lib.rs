@@ -58,10 +58,11 @@ use serde::Deserialize;
 
 /// The factor that makes a default Bevy camera (`Exposure::BLENDER`, ev100
 /// 9.7) show a radbake bake at the preview's EV 0: 1.2 × 2^9.7.
-pub const DEFAULT_EXPOSURE: f32 = 997.9866;
+pub const DEFAULT_EXPOSURE: f32 = 998.0957;
 
-/// Loads radbake bakes: register it once.
-#[derive(Clone, Debug)]
+/// Loads radbake bakes: register it once; it is also the resource its
+/// systems read their settings from.
+#[derive(Resource, Clone, Debug)]
 pub struct RadbakePlugin {
     /// `StandardMaterial::lightmap_exposure` of lightmapped materials, the
     /// irradiance volumes' `intensity` and the factor on the scene's lights.
@@ -79,21 +80,11 @@ impl Default for RadbakePlugin {
     }
 }
 
-/// The plugin's settings, as a resource.
-#[derive(Resource, Clone, Debug)]
-pub struct RadbakeSettings {
-    pub exposure: f32,
-    pub probes: bool,
-}
-
 impl Plugin for RadbakePlugin {
     fn build(&self, app: &mut App) {
         app.init_asset::<RadbakeManifest>()
             .register_asset_loader(ManifestLoader)
-            .insert_resource(RadbakeSettings {
-                exposure: self.exposure,
-                probes: self.probes,
-            })
+            .insert_resource(self.clone())
             .add_systems(PostStartup, ambient_off_lightmapped)
             .add_systems(Update, (spawn_baked_scenes, apply_bakes).chain());
     }
@@ -359,7 +350,7 @@ type MeshEntities<'w, 's> = Query<
 #[allow(clippy::too_many_arguments)]
 fn apply_bakes(
     mut commands: Commands,
-    settings: Res<RadbakeSettings>,
+    settings: Res<RadbakePlugin>,
     bakes: Spawned,
     children: Query<&Children>,
     meshes: MeshEntities,
@@ -503,4 +494,17 @@ fn baked_lights(
         }
     }
     n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The factor cancels the exposure of Bevy's default camera exactly.
+    #[test]
+    fn default_exposure_cancels_bevys_default_camera() {
+        let camera = bevy::camera::Exposure::default();
+        assert_eq!(camera.ev100, bevy::camera::Exposure::EV100_BLENDER);
+        assert!((DEFAULT_EXPOSURE * camera.exposure() - 1.0).abs() < 1e-6);
+    }
 }
