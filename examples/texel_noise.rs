@@ -94,5 +94,30 @@ fn main() -> anyhow::Result<()> {
         pct(0.9),
         rel.iter().filter(|&&r| r < 0.01).count() as f64 * 100.0 / n as f64
     );
+    // Where the noise is: the direct part (sampled lights, and the sky and
+    // emitters the gather's rays see) and the rest (the gathered indirect
+    // light), each against the texel's total, before seams and filling.
+    let (ta, tb) = (&a.transport, &b.transport);
+    let mut parts: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+    for &i in &valid {
+        let m = 0.5 * (lum(ta.values[i]) + lum(tb.values[i]));
+        if m <= 0.01 * mean || ta.direct.is_empty() {
+            continue;
+        }
+        let (da, db) = (lum(ta.direct[i]), lum(tb.direct[i]));
+        let (ia, ib) = (lum(ta.values[i]) - da, lum(tb.values[i]) - db);
+        parts[0].push((da - db).abs() / (std::f64::consts::SQRT_2 * m));
+        parts[1].push((ia - ib).abs() / (std::f64::consts::SQRT_2 * m));
+    }
+    for (name, v) in ["direct", "indirect"].iter().zip(parts.iter_mut()) {
+        v.sort_by(f64::total_cmp);
+        let n = v.len().max(1);
+        let at = |p: f64| v.get(((n - 1) as f64 * p) as usize).copied().unwrap_or(0.0) * 100.0;
+        println!(
+            "  {name} part, against the texel's total: median {:.2} %, 90th percentile {:.2} %",
+            at(0.5),
+            at(0.9)
+        );
+    }
     Ok(())
 }

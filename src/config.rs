@@ -188,6 +188,10 @@ pub struct BakeConfig {
     /// fraction of it (0: every texel casts `final_gather` rays). Off
     /// with `directional = "sh"` or AO, which need every ray.
     pub gather_threshold: f32,
+    /// Light samples towards bright patches in the final gather, combined
+    /// with its cosine rays by MIS ([`crate::nee`]); needs a stored
+    /// form-factor matrix (not `solver = "progressive"`).
+    pub gather_nee: bool,
     /// Make both sides of UV seams on continuous surfaces agree.
     pub stitch_seams: bool,
     /// Fold every texel's sample points out of walls and solids that cross
@@ -263,6 +267,7 @@ impl BakeConfig {
             emitters: EmitterSampling::Auto,
             final_gather: 128,
             gather_threshold: 0.005,
+            gather_nee: false,
             stitch_seams: true,
             burial_planes: true,
             backface_tolerance: 0.5,

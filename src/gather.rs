@@ -23,6 +23,7 @@
 
 use crate::direct::{hemisphere_light, Directional, Lights, Mis};
 use crate::form_factors::raycast::{Landing, Surfaces, TexelSampler};
+use crate::nee::{power, PatchLights};
 use crate::raycast::batch::BatchCaster;
 use crate::raycast::Hit;
 use crate::sampling::{cosine_hemisphere, offset_ray_origin, Net, Stream};
@@ -31,6 +32,9 @@ use rayon::prelude::*;
 
 /// Stream purpose id of final-gather rays.
 const PURPOSE: u64 = 3;
+
+/// Stream purpose id of the gather's light samples ([`crate::nee`]).
+const PURPOSE_NEE: u64 = 15;
 
 /// The default back-face tolerance (`backface_tolerance`): a texel is
 /// invalid when more than this fraction of its rays hit back faces, most
@@ -70,6 +74,13 @@ fn texel_ray(sampler: &TexelSampler, k: u32, nets: &(Net, Net)) -> (Vec3, Vec3, 
 fn texel_nets(seed: u64, purpose: u64, t: usize) -> (Net, Net) {
     let mut rng = Stream::new(seed, purpose, t as u64);
     (Net::shuffled(&mut rng), Net::new(&mut rng))
+}
+
+/// A texel's net of light samples (patch and texel choice, point) and the
+/// stream for a point's rare redraw.
+fn nee_net(seed: u64, t: usize) -> (Net, Stream) {
+    let mut rng = Stream::new(seed, PURPOSE_NEE, t as u64);
+    (Net::shuffled(&mut rng), rng)
 }
 
 /// The adaptive gather's first checkpoint: below it no variance estimate is
@@ -201,6 +212,8 @@ pub(crate) struct TexelGather {
     directional: Directional,
     ao: f32,
     cast: u32,
+    /// Light-sample rays cast ([`crate::nee`]).
+    nee: u32,
     light: Vec3,
 }
 
@@ -218,6 +231,9 @@ pub struct Gatherer<'a> {
     /// Per texel, the direct light the gather does not estimate (punctual
     /// lights, emitters' light samples): the adaptive gather's yardstick.
     known: Option<&'a [Vec3]>,
+    /// Light samples towards bright patches, MIS-combined with the cosine
+    /// rays ([`crate::nee`]); `None`: cosine rays alone.
+    lights: Option<&'a PatchLights<'a>>,
 }
 
 impl<'a> Gatherer<'a> {
@@ -252,7 +268,82 @@ impl<'a> Gatherer<'a> {
             extras,
             direct,
             known: None,
+            lights: None,
         }
+    }
+
+    /// Per texel, the outgoing radiance a gather ray reads where it lands
+    /// on the texel's front: ρ̄ × H₁ plus the emission the direct light
+    /// does not sample (what [`crate::nee::PatchLights`] weighs patches by).
+    pub fn texel_radiance(&self) -> Vec<Vec3> {
+        let (s, g) = (self.s, self.s.geometry);
+        (0..s.texels.len())
+            .map(|t| {
+                let m = g.material[s.texels.triangle[t] as usize] as usize;
+                let e = if self.sampled[m] {
+                    Vec3::ZERO
+                } else {
+                    s.texels.emission[t]
+                };
+                self.reflected[t] + e
+            })
+            .collect()
+    }
+
+    /// Adds light samples towards `lights`' patches to every texel's gather.
+    pub fn with_lights(mut self, lights: &'a PatchLights<'a>) -> Self {
+        self.lights = Some(lights);
+        self
+    }
+
+    /// Rays each texel may cast: the cosine rays, then as many light
+    /// samples where there are lights.
+    fn rays_per_texel(&self) -> usize {
+        self.rays as usize * if self.lights.is_some() { 2 } else { 1 }
+    }
+
+    /// What a gather ray reads where it lands on texel `h` at `hit`: ρ̄ ×
+    /// H₁, plus the surface's emission (front only) unless the direct light
+    /// samples it; and that sampled emission apart (the directional part
+    /// sees it).
+    #[inline(always)]
+    fn read(&self, h: u32, hit: &Hit, dir: Vec3) -> (Vec3, Vec3) {
+        let g = self.s.geometry;
+        let tri = hit.tri as usize;
+        let m = g.material[tri];
+        let mut l = self.reflected[h as usize];
+        let front = g.ng_ws[tri].dot(dir) < 0.0;
+        let mut sampled = Vec3::ZERO;
+        if front {
+            let uv0 = g.uv0_at(hit.tri, hit.u, hit.v);
+            if !self.sampled[m as usize] {
+                l += self.s.scene.emission_at(m, uv0);
+            } else if self.extras.directional {
+                sampled = self.s.scene.emission_at(m, uv0);
+            }
+        }
+        (l, sampled)
+    }
+
+    /// Texel `t`'s light sample `k` from `origin` (normal `ng`), if it has
+    /// one above the horizon.
+    #[inline(always)]
+    fn light_sample(
+        &self,
+        t: usize,
+        origin: Vec3,
+        ng: Vec3,
+        (net, rng): (&Net, &mut Stream),
+        k: u32,
+    ) -> Option<crate::nee::LightSample> {
+        let lights = self.lights?;
+        let i = self.s.patches.of_texel[t].0;
+        if !lights.lit(i) {
+            return None;
+        }
+        lights
+            .sample(self.s, i, origin, net.point(k), rng)
+            .filter(|ls| ng.dot(ls.dir) > 0.0)
     }
 
     /// The direct light per texel that the gather's rays do not estimate,
@@ -268,20 +359,30 @@ impl<'a> Gatherer<'a> {
     /// on an invalid texel.
     fn rays_of(&self, t: usize, out: &mut [(Vec3, Vec3)]) {
         let nets = texel_nets(self.seed, PURPOSE, t);
+        let (net, mut rng) = nee_net(self.seed, t);
         let sampler = self.s.texel_sampler(t as u32);
-        for (k, o) in out.iter_mut().enumerate().take(self.rays as usize) {
+        let n = self.rays as usize;
+        for k in 0..n.min(out.len()) {
             let (p, ng, dir) = texel_ray(&sampler, k as u32, &nets);
-            *o = (offset_ray_origin(p, ng), dir);
+            let o = offset_ray_origin(p, ng);
+            out[k] = (o, dir);
+            if let Some(slot) = out.get_mut(n + k) {
+                // A light sample's ray; the cosine ray's again where the
+                // texel has none (its hit is not read).
+                let ls = self.light_sample(t, o, ng, (&net, &mut rng), k as u32);
+                *slot = (o, ls.map_or(dir, |ls| ls.dir));
+            }
         }
     }
 
     /// Texel `t`'s gather; `cast(k, origin, dir)` is the closest hit of its
-    /// ray `k`. Inlined into each caller (the CPU gather and the batched
-    /// one), as it was before the batched path had its own module: out of
-    /// line it cost the Cornell bake 3.8 % more instructions.
+    /// ray `k` (cosine rays 0..N, light samples N..2N). Inlined into each
+    /// caller (the CPU gather and the batched one), as it was before the
+    /// batched path had its own module: out of line it cost the Cornell
+    /// bake 3.8 % more instructions.
     #[inline(always)]
     fn texel(&self, t: usize, mut cast: impl FnMut(u32, Vec3, Vec3) -> Option<Hit>) -> TexelGather {
-        let (s, g, extras, rays) = (self.s, self.s.geometry, self.extras, self.rays);
+        let (s, extras, rays) = (self.s, self.extras, self.rays);
         if s.burial.enclosed(t) {
             // Every ray of the validity estimate met a back face: the texel
             // is inside a solid; it receives nothing and is filled.
@@ -292,10 +393,14 @@ impl<'a> Gatherer<'a> {
                 directional: [Vec3::ZERO; 3],
                 ao: 0.0,
                 cast: 0,
+                nee: 0,
                 light: Vec3::ZERO,
             };
         }
         let nets = texel_nets(self.seed, PURPOSE, t);
+        let (net, mut rng) = nee_net(self.seed, t);
+        let patch = s.patches.of_texel[t].0;
+        let lights = self.lights.filter(|l| l.lit(patch));
         let sampler = s.texel_sampler(t as u32);
         let known = self.known.map_or(0.0, |k| k[t].element_sum() / 3.0);
         // The rule judges the irradiance only: the directional part and AO
@@ -308,7 +413,7 @@ impl<'a> Gatherer<'a> {
         let mut dir_sum: Directional = [Vec3::ZERO; 3];
         let mut open = 0u32;
         let mut light = Vec3::ZERO;
-        let mut n_cast = 0u32;
+        let (mut n_cast, mut n_nee) = (0u32, 0u32);
         for k in 0..rays {
             // Once more rays have met back faces than an invalid
             // texel needs, the texel is invalid whatever the rest
@@ -328,10 +433,11 @@ impl<'a> Gatherer<'a> {
             }
             n_cast += 1;
             let (p, ng, dir) = texel_ray(&sampler, k, &nets);
+            let origin = offset_ray_origin(p, ng);
             // Radiance for the directional part: everything seen.
             let mut seen = Vec3::ZERO;
             let mut indirect = Vec3::ZERO;
-            let hit = cast(k, offset_ray_origin(p, ng), dir);
+            let hit = cast(k, origin, dir);
             let landing = match hit {
                 Some(h) => s.land(h.tri, h.u, h.v, dir),
                 None => Landing::Escaped,
@@ -346,42 +452,44 @@ impl<'a> Gatherer<'a> {
             }
             match (landing, hit) {
                 (Landing::Texel(h), Some(hit)) => {
-                    let tri = hit.tri as usize;
-                    let m = g.material[tri];
-                    let uv0 = g.uv0_at(hit.tri, hit.u, hit.v);
-                    let mut l = self.reflected[h as usize];
-                    let front = g.ng_ws[tri].dot(dir) < 0.0;
-                    if front && !self.sampled[m as usize] {
-                        l += s.scene.emission_at(m, uv0);
-                    }
-                    sum += l;
-                    indirect = l;
-                    let lum = l.element_sum() / 3.0;
-                    sq += lum * lum;
-                    seen = l;
-                    if front && self.sampled[m as usize] && extras.directional {
-                        seen += s.scene.emission_at(m, uv0);
-                    }
+                    let (l, sampled) = self.read(h, &hit, dir);
+                    // The cosine ray's MIS weight against the light samples.
+                    let w = lights.map_or(1.0, |lights| {
+                        let pn = self.light_pdf(lights, patch, h, &hit, dir);
+                        power(ng.dot(dir) * std::f32::consts::FRAC_1_PI, pn)
+                    });
+                    indirect = l * w;
+                    seen = indirect + sampled;
                 }
                 (Landing::BackFace, _) => back += 1,
                 (Landing::Escaped, _) => seen = extras.sky,
                 _ => {}
             }
+            if extras.directional {
+                dir_sum = add_directional(dir_sum, seen, ng, dir);
+            }
+            if let Some(lights) = lights {
+                if let Some(ls) = self.light_sample(t, origin, ng, (&net, &mut rng), k) {
+                    n_nee += 1;
+                    let (l, pn) =
+                        self.light_ray(lights, patch, &ls, cast(rays + k, origin, ls.dir));
+                    if pn > 0.0 {
+                        let pc = ng.dot(ls.dir) * std::f32::consts::FRAC_1_PI;
+                        // w_n f / p_n with f = L cos θ / π = L p_c.
+                        let contribution = l * (power(pn, pc) * pc / pn);
+                        indirect += contribution;
+                        if extras.directional {
+                            dir_sum = add_directional(dir_sum, contribution, ng, ls.dir);
+                        }
+                    }
+                }
+            }
+            sum += indirect;
+            let lum = indirect.element_sum() / 3.0;
+            sq += lum * lum;
             let whole = (indirect + ray_light).element_sum() / 3.0;
             all += whole;
             all_sq += whole * whole;
-            if extras.directional {
-                // b = ∫ L ω dω / 2π with pdf cos θ / π: the normal
-                // part of ω / (2 cos θ) is exactly n / 2; the
-                // tangential part is divided by a cos θ clamped at
-                // 0.25, bounding its variance (grazing light's
-                // tangential pull is underestimated).
-                let cos = ng.dot(dir);
-                let v = ng * 0.5 + (dir - ng * cos) * (0.5 / cos.max(0.25));
-                for (c, b) in dir_sum.iter_mut().enumerate() {
-                    *b += seen * v[c];
-                }
-            }
         }
         let n = n_cast as f32;
         let mean = sum / n;
@@ -394,8 +502,49 @@ impl<'a> Gatherer<'a> {
             directional: dir_sum.map(|b| b / n),
             ao: open as f32 / n,
             cast: n_cast,
+            nee: n_nee,
             light: light / n,
         }
+    }
+
+    /// What light sample `ls`'s ray reads, and its density p_n: the
+    /// radiance where it lands if its first hit is the point it chose
+    /// (within 10⁻³ of the distance) and on the patch of that point; else
+    /// nothing (p_n = 0). The density is evaluated at the hit as for a
+    /// cosine ray ([`Gatherer::light_pdf`]), so both strategies weigh a
+    /// direction alike.
+    #[inline(always)]
+    fn light_ray(
+        &self,
+        lights: &PatchLights,
+        patch: u32,
+        ls: &crate::nee::LightSample,
+        hit: Option<Hit>,
+    ) -> (Vec3, f32) {
+        let s = self.s;
+        let Some(hit) = hit else {
+            return (Vec3::ZERO, 0.0);
+        };
+        if (hit.t - ls.dist).abs() > 1e-3 * ls.dist {
+            return (Vec3::ZERO, 0.0);
+        }
+        let Landing::Texel(h) = s.land(hit.tri, hit.u, hit.v, ls.dir) else {
+            return (Vec3::ZERO, 0.0);
+        };
+        if s.patches.of_texel[h as usize].0 != ls.patch {
+            return (Vec3::ZERO, 0.0);
+        }
+        let pn = self.light_pdf(lights, patch, h, &hit, ls.dir);
+        (self.read(h, &hit, ls.dir).0, pn)
+    }
+
+    /// p_n of a ray from a texel of patch `patch` that landed on texel `h`
+    /// at `hit`.
+    #[inline(always)]
+    fn light_pdf(&self, lights: &PatchLights, patch: u32, h: u32, hit: &Hit, dir: Vec3) -> f32 {
+        let j = self.s.patches.of_texel[h as usize].0;
+        let ny = self.s.geometry.ng_ws[hit.tri as usize];
+        lights.pdf(self.s, patch, j, dir, hit.t, ny)
     }
 
     /// Every texel's gather, its rays cast on the CPU.
@@ -432,7 +581,7 @@ impl<'a> Gatherer<'a> {
         advance: &(dyn Fn(u64) + Sync),
     ) -> anyhow::Result<Gathered> {
         let n = self.s.texels.len();
-        let per = self.rays.max(1) as usize;
+        let per = self.rays_per_texel().max(1);
         let mut texels = Vec::with_capacity(n);
         caster.cast_batches(
             n,
@@ -467,7 +616,7 @@ impl<'a> Gatherer<'a> {
             rays: 0,
         };
         for x in texels {
-            gathered.rays += x.cast as u64;
+            gathered.rays += x.cast as u64 + x.nee as u64;
             gathered.indirect.push(x.mean);
             gathered.valid.push(x.valid);
             gathered.variance.push(x.variance);
@@ -483,6 +632,22 @@ impl<'a> Gatherer<'a> {
         }
         gathered
     }
+}
+
+/// Adds radiance `seen` from `dir` to the directional sums over normal
+/// `ng`: b = ∫ L ω dω / 2π with pdf cos θ / π, so each ray adds L ω /
+/// (2 cos θ): its normal part is exactly n / 2; the tangential part is
+/// divided by a cos θ clamped at 0.25, bounding its variance (grazing
+/// light's tangential pull is underestimated). A light sample's
+/// contribution, w_n L p_c / p_n, enters the same way.
+#[inline(always)]
+fn add_directional(mut sum: Directional, seen: Vec3, ng: Vec3, dir: Vec3) -> Directional {
+    let cos = ng.dot(dir);
+    let v = ng * 0.5 + (dir - ng * cos) * (0.5 / cos.max(0.25));
+    for (c, b) in sum.iter_mut().enumerate() {
+        *b += seen * v[c];
+    }
+    sum
 }
 
 /// Gathers `rays` rays per texel. `first_pass` is H₁ per texel; `sampled`

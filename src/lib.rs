@@ -42,6 +42,7 @@ pub mod geometry;
 pub mod incremental;
 pub mod lightmap;
 pub mod measure;
+pub mod nee;
 pub mod output;
 pub mod patches;
 pub mod photon;

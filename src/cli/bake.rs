@@ -115,6 +115,10 @@ pub struct BakeArgs {
     /// standard error is at most this; 0 casts every ray [default: 0.005].
     #[arg(long)]
     pub gather_threshold: Option<f32>,
+    /// Final gather: also sample rays towards the solved bright patches (next-event
+    /// estimation, MIS with the cosine rays): true or false [default: false].
+    #[arg(long)]
+    pub gather_nee: Option<bool>,
     /// Emissive surfaces: sampled per texel (`direct`), through the radiosity solve (`radiosity`),
     /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
     #[arg(long, value_enum)]
@@ -213,6 +217,7 @@ impl BakeArgs {
             emitters,
             final_gather,
             gather_threshold,
+            gather_nee,
             ktx2,
             probes,
             probe_spacing,

@@ -20,6 +20,7 @@ use crate::form_factors::raycast::Surfaces;
 use crate::form_factors::rows::OnDemand;
 use crate::form_factors::{self, FormFactors};
 use crate::gather::{self, Extras, Gathered, Gatherer};
+use crate::nee::PatchLights;
 use crate::raycast::batch::BatchCaster;
 use crate::raycast::device;
 use crate::solve::{self, progressive, System};
@@ -144,7 +145,23 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
 
     log.begin("final_gather", s.texels.len() as u64);
     let gatherer = gatherer(s, &first, &direct, config);
+    // Light samples towards the solved bright patches, picked by the rows
+    // of F (so only with a stored matrix).
+    let lights = match &patch_light.form_factors {
+        Some(ff) if config.gather_nee => Some(PatchLights::build(
+            s,
+            &ff.matrix,
+            &gatherer.texel_radiance(),
+        )),
+        _ => None,
+    };
+    let gatherer = match &lights {
+        Some(l) => gatherer.with_lights(l),
+        None => gatherer,
+    };
     let g = final_gather(&gatherer, gpu.as_deref(), &advance, &mut log.warnings);
+    drop(gatherer);
+    drop(lights);
     log.end("final_gather");
     rays.gather = g.rays;
     let light = gathered_light(s, atlas, config, direct, g, log);
