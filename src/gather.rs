@@ -325,25 +325,20 @@ impl<'a> Gatherer<'a> {
         (l, sampled)
     }
 
-    /// Texel `t`'s light sample `k` from `origin` (normal `ng`), if it has
-    /// one above the horizon.
-    #[inline(always)]
-    fn light_sample(
-        &self,
-        t: usize,
-        origin: Vec3,
-        ng: Vec3,
-        (net, rng): (&Net, &mut Stream),
-        k: u32,
-    ) -> Option<crate::nee::LightSample> {
+    /// Texel `t`'s lights, if its patch has any: the lights, the patch, and
+    /// the texel's net and stream for its light samples.
+    fn texel_lights(&self, t: usize) -> Option<TexelLights<'_>> {
         let lights = self.lights?;
-        let i = self.s.patches.of_texel[t].0;
-        if !lights.lit(i) {
-            return None;
-        }
-        lights
-            .sample(self.s, i, origin, net.point(k), rng)
-            .filter(|ls| ng.dot(ls.dir) > 0.0)
+        let patch = self.s.patches.of_texel[t].0;
+        lights.lit(patch).then(|| {
+            let (net, rng) = nee_net(self.seed, t);
+            TexelLights {
+                lights,
+                patch,
+                net,
+                rng,
+            }
+        })
     }
 
     /// The direct light per texel that the gather's rays do not estimate,
@@ -359,7 +354,7 @@ impl<'a> Gatherer<'a> {
     /// on an invalid texel.
     fn rays_of(&self, t: usize, out: &mut [(Vec3, Vec3)]) {
         let nets = texel_nets(self.seed, PURPOSE, t);
-        let (net, mut rng) = nee_net(self.seed, t);
+        let mut tl = self.texel_lights(t);
         let sampler = self.s.texel_sampler(t as u32);
         let n = self.rays as usize;
         for k in 0..n.min(out.len()) {
@@ -369,7 +364,9 @@ impl<'a> Gatherer<'a> {
             if let Some(slot) = out.get_mut(n + k) {
                 // A light sample's ray; the cosine ray's again where the
                 // texel has none (its hit is not read).
-                let ls = self.light_sample(t, o, ng, (&net, &mut rng), k as u32);
+                let ls = tl
+                    .as_mut()
+                    .and_then(|tl| tl.sample(self.s, o, ng, k as u32));
                 *slot = (o, ls.map_or(dir, |ls| ls.dir));
             }
         }
@@ -398,9 +395,7 @@ impl<'a> Gatherer<'a> {
             };
         }
         let nets = texel_nets(self.seed, PURPOSE, t);
-        let (net, mut rng) = nee_net(self.seed, t);
-        let patch = s.patches.of_texel[t].0;
-        let lights = self.lights.filter(|l| l.lit(patch));
+        let mut tl = self.texel_lights(t);
         let sampler = s.texel_sampler(t as u32);
         let known = self.known.map_or(0.0, |k| k[t].element_sum() / 3.0);
         // The rule judges the irradiance only: the directional part and AO
@@ -454,8 +449,8 @@ impl<'a> Gatherer<'a> {
                 (Landing::Texel(h), Some(hit)) => {
                     let (l, sampled) = self.read(h, &hit, dir);
                     // The cosine ray's MIS weight against the light samples.
-                    let w = lights.map_or(1.0, |lights| {
-                        let pn = self.light_pdf(lights, patch, h, &hit, dir);
+                    let w = tl.as_ref().map_or(1.0, |tl| {
+                        let pn = self.light_pdf(tl.lights, tl.patch, h, &hit, dir);
                         power(ng.dot(dir) * std::f32::consts::FRAC_1_PI, pn)
                     });
                     indirect = l * w;
@@ -468,11 +463,11 @@ impl<'a> Gatherer<'a> {
             if extras.directional {
                 dir_sum = add_directional(dir_sum, seen, ng, dir);
             }
-            if let Some(lights) = lights {
-                if let Some(ls) = self.light_sample(t, origin, ng, (&net, &mut rng), k) {
+            if let Some(tl) = tl.as_mut() {
+                if let Some(ls) = tl.sample(s, origin, ng, k) {
                     n_nee += 1;
                     let (l, pn) =
-                        self.light_ray(lights, patch, &ls, cast(rays + k, origin, ls.dir));
+                        self.light_ray(tl.lights, tl.patch, &ls, cast(rays + k, origin, ls.dir));
                     if pn > 0.0 {
                         let pc = ng.dot(ls.dir) * std::f32::consts::FRAC_1_PI;
                         // w_n f / p_n with f = L cos θ / π = L p_c.
@@ -631,6 +626,32 @@ impl<'a> Gatherer<'a> {
             }
         }
         gathered
+    }
+}
+
+/// A texel's lights ([`Gatherer::texel_lights`]).
+struct TexelLights<'a> {
+    lights: &'a PatchLights<'a>,
+    patch: u32,
+    net: Net,
+    /// For a light sample's point's rare redraw.
+    rng: Stream,
+}
+
+impl TexelLights<'_> {
+    /// Light sample `k` from `origin` (normal `ng`), if it lies above the
+    /// horizon.
+    #[inline(always)]
+    fn sample(
+        &mut self,
+        s: &Surfaces,
+        origin: Vec3,
+        ng: Vec3,
+        k: u32,
+    ) -> Option<crate::nee::LightSample> {
+        self.lights
+            .sample(s, self.patch, origin, self.net.point(k), &mut self.rng)
+            .filter(|ls| ng.dot(ls.dir) > 0.0)
     }
 }
 

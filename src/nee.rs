@@ -114,19 +114,6 @@ impl<'a> PatchLights<'a> {
         self.lit[i as usize]
     }
 
-    /// Entries with a nonzero probability (for the report).
-    pub fn lights(&self) -> usize {
-        let offsets = self.f.row_offsets();
-        (0..self.f.nrows())
-            .map(|i| {
-                let c = &self.cdf[offsets[i]..offsets[i + 1]];
-                (0..c.len())
-                    .filter(|&k| c[k] > if k == 0 { 0.0 } else { c[k - 1] })
-                    .count()
-            })
-            .sum()
-    }
-
     /// P(j | i): entry `j` of row `i`'s distribution (0 if absent).
     #[inline]
     fn probability(&self, i: usize, j: usize) -> f32 {
