@@ -491,12 +491,17 @@ fn close_emitter_lights_its_neighbour() {
 
 /// Per instance, the texel mean of the direct light (valid texels only).
 fn direct_means(bake: &radbake::Bake) -> Vec<f64> {
+    texel_means(bake, &bake.transport.direct)
+}
+
+/// Per instance, the texel mean of `values` over its valid texels.
+fn texel_means(bake: &radbake::Bake, values: &[glam::Vec3]) -> Vec<f64> {
     let n = bake.scene.instances.len();
     let (mut sum, mut count) = (vec![0.0f64; n], vec![0u32; n]);
-    for t in 0..bake.texels.len() {
+    for (t, v) in values.iter().enumerate() {
         if bake.transport.valid[t] {
             let i = bake.texels.instance[t] as usize;
-            sum[i] += bake.transport.direct[t].element_sum() as f64 / 3.0;
+            sum[i] += v.element_sum() as f64 / 3.0;
             count[i] += 1;
         }
     }
@@ -749,24 +754,6 @@ fn sun_on_a_corrugated_sheet() {
     );
 }
 
-/// Area-weighted mean of each instance's valid texels' light.
-fn instance_means(bake: &radbake::Bake) -> Vec<f64> {
-    let n = bake.scene.instances.len();
-    let (mut sum, mut area) = (vec![0.0f64; n], vec![0.0f64; n]);
-    for t in 0..bake.texels.len() {
-        if bake.transport.valid[t] {
-            let i = bake.texels.instance[t] as usize;
-            let a = bake.texels.area[t] as f64;
-            sum[i] += a * bake.transport.values[t].element_sum() as f64 / 3.0;
-            area[i] += a;
-        }
-    }
-    sum.iter()
-        .zip(&area)
-        .map(|(s, a)| s / a.max(1e-12))
-        .collect()
-}
-
 /// The final gather with light samples towards the solved patches (NEE,
 /// MIS with the cosine rays, `gather_nee`) and without agree in
 /// expectation: every instance's mean within 1 %, on the Cornell box and
@@ -811,11 +798,11 @@ fn light_samples_leave_the_gather_unbiased() {
             "{}: no light samples were cast",
             scene.instances[0].node
         );
-        for (i, (x, y)) in instance_means(&b)
-            .iter()
-            .zip(instance_means(&a))
-            .enumerate()
-        {
+        let (mb, ma) = (
+            texel_means(&b, &b.transport.values),
+            texel_means(&a, &a.transport.values),
+        );
+        for (i, (x, y)) in mb.iter().zip(ma).enumerate() {
             let node = &scene.instances[i].node;
             if y > 1e-3 {
                 assert!((x - y).abs() / y < 0.01, "{node}: NEE {x} vs plain {y}");
