@@ -2,6 +2,8 @@
 //! flags, validated before any work starts.
 
 use crate::error::{Error, Result};
+pub use crate::scene::LightMode;
+use crate::scene::{Light, LightKind, Scene};
 use serde::{Deserialize, Serialize};
 
 /// Where the lightmap UVs come from.
@@ -232,6 +234,113 @@ pub struct BakeConfig {
     pub device: Device,
     /// Also write `lightmap_<page>_debug.png` (patches and texel validity, for the preview's debug views).
     pub debug_maps: bool,
+    /// Each punctual light's bake mode ([`LightMode`]): defaults per light
+    /// type and overrides per light.
+    pub light_modes: LightModes,
+}
+
+/// The bake mode of each punctual light ([`LightMode`]). A light's mode is,
+/// first found: `lights[name]` (its light's or its node's name; the CLI's
+/// `--light-mode NAME=MODE`), its node's `extras.radbake.mode`, the default
+/// of its type here, `baked`.
+///
+/// ```toml
+/// [light_modes]
+/// directional = "indirect"
+/// [light_modes.lights]
+/// Lamp = "realtime"
+/// ```
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LightModes {
+    /// Directional lights whose node sets no mode.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub directional: Option<LightMode>,
+    /// Point lights whose node sets no mode.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub point: Option<LightMode>,
+    /// Spot lights whose node sets no mode.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spot: Option<LightMode>,
+    /// Per light, by its light's or its node's name: overrides the rest.
+    pub lights: std::collections::BTreeMap<String, LightMode>,
+}
+
+impl LightModes {
+    /// The mode of `light` (see [`LightModes`]).
+    pub fn resolve(&self, light: &Light) -> LightMode {
+        let by_type = match light.kind {
+            LightKind::Directional => self.directional,
+            LightKind::Point => self.point,
+            LightKind::Spot { .. } => self.spot,
+        };
+        self.lights
+            .get(&light.name)
+            .or_else(|| self.lights.get(&light.node))
+            .copied()
+            .or(light.node_mode)
+            .or(by_type)
+            .unwrap_or_default()
+    }
+
+    /// Sets every light's [`Light::mode`] in `scene`.
+    ///
+    /// # Errors
+    /// [`Error::Config`] for a name in `lights` that names no light (a
+    /// misspelt name would otherwise bake the light in the wrong mode).
+    pub fn apply(&self, scene: &mut Scene) -> Result<()> {
+        self.check_names(scene)?;
+        for light in &mut scene.lights {
+            light.mode = self.resolve(light);
+        }
+        Ok(())
+    }
+
+    /// Checks that `scene`'s lights have the modes these settings give
+    /// them ([`LightModes::apply`] was called).
+    ///
+    /// # Errors
+    /// [`Error::Config`] naming the first light that differs, or a name
+    /// that names no light.
+    pub fn check(&self, scene: &Scene) -> Result<()> {
+        self.check_names(scene)?;
+        match scene.lights.iter().find(|l| l.mode != self.resolve(l)) {
+            Some(l) => Err(Error::Config {
+                key: "light_modes".into(),
+                message: format!(
+                    "light `{}` is {} in the scene but {} by these settings: call LightModes::apply on the scene before baking",
+                    l.name,
+                    l.mode.name(),
+                    self.resolve(l).name()
+                ),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    fn check_names(&self, scene: &Scene) -> Result<()> {
+        for name in self.lights.keys() {
+            if !scene
+                .lights
+                .iter()
+                .any(|l| &l.name == name || &l.node == name)
+            {
+                let known: Vec<&str> = scene.lights.iter().map(|l| l.name.as_str()).collect();
+                return Err(Error::Config {
+                    key: format!("light_modes.lights.{name}"),
+                    message: format!(
+                        "no light is named `{name}` (the scene's lights: {})",
+                        if known.is_empty() {
+                            "none".to_owned()
+                        } else {
+                            known.join(", ")
+                        }
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for BakeConfig {
@@ -286,11 +395,17 @@ impl BakeConfig {
             photon_neighbours: 128,
             debug_maps: false,
             device: Device::Cpu,
+            light_modes: LightModes {
+                directional: None,
+                point: None,
+                spot: None,
+                lights: std::collections::BTreeMap::new(),
+            },
         }
     }
 
     /// Quick look: a quarter of the light samples and gather rays, coarser texels, loose tolerance.
-    pub const fn preview() -> Self {
+    pub fn preview() -> Self {
         let m = Self::medium();
         BakeConfig {
             texels_per_meter: 48.0,
@@ -306,7 +421,7 @@ impl BakeConfig {
     }
 
     /// Final quality: smaller patches, 4× the rays and light samples, tight tolerance.
-    pub const fn production() -> Self {
+    pub fn production() -> Self {
         let m = Self::medium();
         BakeConfig {
             patch_texels: 2,
@@ -322,7 +437,7 @@ impl BakeConfig {
     }
 
     /// The settings of a [`Preset`].
-    pub const fn preset(p: Preset) -> Self {
+    pub fn preset(p: Preset) -> Self {
         match p {
             Preset::Preview => Self::preview(),
             Preset::Medium => Self::medium(),

@@ -24,7 +24,7 @@ use crate::raycast::{Hit, RayCaster};
 use crate::sampling::{
     cosine_hemisphere, offset_ray_origin, shadow_ray, stratified, to_world, Stream,
 };
-use crate::scene::{Light, LightKind, Scene};
+use crate::scene::{Light, LightKind, LightMode, Scene};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -46,10 +46,16 @@ pub struct Lights {
 
 impl Lights {
     /// Collects the emissive triangles of `geometry` whose material is
-    /// flagged in `sampled`, the scene's lights and the sky.
+    /// flagged in `sampled`, the scene's baked lights (every mode but
+    /// [`LightMode::Realtime`]) and the sky.
     pub fn new(scene: &Scene, geometry: &Geometry, sampled: &[bool], sky: Vec3) -> Lights {
         let mut l = Lights {
-            punctual: scene.lights.clone(),
+            punctual: scene
+                .lights
+                .iter()
+                .filter(|l| l.mode != LightMode::Realtime)
+                .cloned()
+                .collect(),
             sky,
             ..Default::default()
         };
@@ -303,8 +309,9 @@ pub fn hemisphere_light(
 /// estimate is the texel's average), sky and emitters by one
 /// cosine-weighted ray from each of `hemisphere` points; the two emitter
 /// estimators are weighted by `mis`.
-/// Returns (light samples' part incl. punctual lights, hemisphere rays'
-/// part, punctual directional part, rays cast).
+/// Returns the light samples' part incl. the baked punctual lights, the
+/// mixed lights' part, the hemisphere rays' part, the baked punctual
+/// lights' directional part and the rays cast.
 pub fn direct_at(
     s: &Surfaces,
     lights: &Lights,
@@ -313,9 +320,10 @@ pub fn direct_at(
     points: &[(Vec3, Vec3)],
     hemisphere: &[(Vec3, Vec3)],
     rng: &mut Stream,
-) -> (Vec3, Vec3, Directional, u64) {
+) -> TexelDirect {
     let g = s.geometry;
     let mut h = Vec3::ZERO;
+    let mut mixed = Vec3::ZERO;
     let mut rays = 0u64;
     let pi = std::f32::consts::PI;
 
@@ -329,7 +337,12 @@ pub fn direct_at(
         for light in &lights.punctual {
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
                 rays += 1;
-                if punctual_unoccluded(s.rays, origin, dir, dist) {
+                if !punctual_unoccluded(s.rays, origin, dir, dist) {
+                    continue;
+                }
+                if light.mode.is_mixed() {
+                    mixed += value * w;
+                } else {
                     h += value * w;
                     let cos = n.dot(dir).max(1e-3);
                     for (c, b) in dir_part.iter_mut().enumerate() {
@@ -342,7 +355,13 @@ pub fn direct_at(
 
     let has_emitters = !lights.emitters.is_empty();
     if !has_emitters && lights.sky == Vec3::ZERO {
-        return (h, Vec3::ZERO, dir_part, rays);
+        return TexelDirect {
+            light: h,
+            mixed,
+            hemisphere: Vec3::ZERO,
+            directional: dir_part,
+            rays,
+        };
     }
 
     // Hemisphere (BRDF) samples: emitters with MIS weights, sky unweighted.
@@ -401,7 +420,29 @@ pub fn direct_at(
             h += le * (p_b / p_l) * (1.0 - mis.hemisphere_weight(p_l, p_b)) / mis.light as f32;
         }
     }
-    (h, hemi, dir_part, rays)
+    TexelDirect {
+        light: h,
+        mixed,
+        hemisphere: hemi,
+        directional: dir_part,
+        rays,
+    }
+}
+
+/// One texel's direct light, its parts apart (irradiance / π each).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TexelDirect {
+    /// Baked punctual lights and the emitters' light samples.
+    pub light: Vec3,
+    /// Mixed lights ([`LightMode::is_mixed`]): their direct light, which
+    /// the lightmap leaves to the engine but the bounces carry.
+    pub mixed: Vec3,
+    /// Sky and the emitters' hemisphere samples.
+    pub hemisphere: Vec3,
+    /// The baked punctual lights' directional part.
+    pub directional: Directional,
+    /// Rays cast.
+    pub rays: u64,
 }
 
 /// The directional part b of a texel's light, one RGB vector per world axis
@@ -426,15 +467,30 @@ pub struct Direct {
     pub light: Vec<Vec3>,
     /// Sky and the emitters' hemisphere samples (irradiance / π).
     pub hemisphere: Vec<Vec3>,
-    /// Punctual lights' directional part.
+    /// Mixed lights' direct light ([`TexelDirect::mixed`]; irradiance / π),
+    /// in none of the other parts.
+    pub mixed: Vec<Vec3>,
+    /// Baked punctual lights' directional part.
     pub directional: Vec<Directional>,
     /// Rays cast.
     pub rays: u64,
 }
 
 impl Direct {
-    /// The direct light per texel (`light + hemisphere`).
+    /// All the direct light that arrives per texel (`light + hemisphere +
+    /// mixed`): what the texel reflects, for the bounces.
     pub fn total(&self) -> Vec<Vec3> {
+        self.light
+            .iter()
+            .zip(&self.hemisphere)
+            .zip(&self.mixed)
+            .map(|((a, b), c)| *a + *b + *c)
+            .collect()
+    }
+
+    /// The direct light the lightmap holds per texel (`light +
+    /// hemisphere`): the mixed lights' is the engine's to draw.
+    pub fn baked(&self) -> Vec<Vec3> {
         self.light
             .iter()
             .zip(&self.hemisphere)
@@ -456,14 +512,15 @@ const PIECE_RAYS: usize = 4;
 /// centroid of a curved texel lies off the surface, in the surface's own
 /// shadow: Sponza's roof read 5 % dark that way; one piece's normal for the
 /// whole texel favours the larger, steeper facets.)
-/// Returns (irradiance / π, directional part, rays).
-pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> (Vec3, Directional, u64) {
+/// Returns the baked lights' irradiance / π (in `light`), the mixed
+/// lights' (in `mixed`), the baked lights' directional part and the rays.
+pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> TexelDirect {
     let g = s.geometry;
     let pieces = s.texels.pieces_of(t);
     let total: f32 = pieces.iter().map(|p| p.area).sum();
-    let (mut h, mut dir_part, mut rays) = (Vec3::ZERO, [Vec3::ZERO; 3], 0u64);
+    let mut out = TexelDirect::default();
     if pieces.is_empty() || total <= 0.0 {
-        return (h, dir_part, rays);
+        return out;
     }
     let n_texel = s.texels.n_ws[t];
     // Pieces' points on the texel's side of its burial planes.
@@ -499,7 +556,7 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> (Vec3, Directio
         let weight_sum: f32 = lit.iter().map(|l| l.5).sum();
         let mut visible = 0.0f32;
         for &(p, n, _, dir, dist, w) in &lit {
-            rays += 1;
+            out.rays += 1;
             if punctual_unoccluded(s.rays, offset_ray_origin(p, n), dir, dist) {
                 visible += w / weight_sum;
             }
@@ -508,16 +565,20 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> (Vec3, Directio
             continue;
         }
         let value = unshadowed * visible;
-        h += value;
+        if light.mode.is_mixed() {
+            out.mixed += value;
+            continue;
+        }
+        out.light += value;
         // Directional part as for a single point (see [`direct_at`]), from
         // the texel's mean normal and the first lit piece's direction.
         let dir = lit[0].3;
         let cos = n_texel.dot(dir).max(1e-3);
-        for (c, b) in dir_part.iter_mut().enumerate() {
+        for (c, b) in out.directional.iter_mut().enumerate() {
             *b += value * (dir[c] / cos);
         }
     }
-    (h, dir_part, rays)
+    out
 }
 
 /// Direct light at every texel (see [`direct_at`]): area lights and sky
@@ -541,7 +602,7 @@ pub fn texels(
 ) -> Direct {
     let n = s.texels.len();
     let chunk = 256;
-    type Part = (Vec<(Vec3, Vec3, Directional)>, u64);
+    type Part = (Vec<TexelDirect>, u64);
     let out: Vec<Part> = (0..n.div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
@@ -551,7 +612,7 @@ pub fn texels(
             for t in range {
                 if s.burial.enclosed(t) {
                     // Inside a solid (see `burial`): nothing arrives.
-                    vals.push((Vec3::ZERO, Vec3::ZERO, [Vec3::ZERO; 3]));
+                    vals.push(TexelDirect::default());
                     continue;
                 }
                 let mut rng = Stream::new(seed, PURPOSE, t as u64);
@@ -559,14 +620,14 @@ pub fn texels(
                 let sampler = s.texel_sampler(t as u32);
                 // One point: the texel's pieces (see `pieces_direct`);
                 // s × s points: spread over the texel's square.
-                let (centre, (ph, pb, pr)) = if supersample <= 1 {
+                let (centre, pieces) = if supersample <= 1 {
                     (Vec::new(), pieces_direct(s, lights, t))
                 } else {
                     let m = supersample * supersample;
                     let points = (0..m)
                         .map(|k| sampler.sample(stratified(k, m, Vec2::splat(0.5))))
                         .collect();
-                    (points, (Vec3::ZERO, [Vec3::ZERO; 3], 0))
+                    (points, TexelDirect::default())
                 };
                 let mut spread = |count: u32| -> Vec<(Vec3, Vec3)> {
                     (0..count)
@@ -579,13 +640,14 @@ pub fn texels(
                 } else {
                     spread(hemisphere)
                 };
-                let (l, h, mut b, r) =
-                    direct_at(s, lights, mis, &centre, &points, &hemi_points, &mut rng);
-                for (bc, pc) in b.iter_mut().zip(pb) {
+                let mut d = direct_at(s, lights, mis, &centre, &points, &hemi_points, &mut rng);
+                for (bc, pc) in d.directional.iter_mut().zip(pieces.directional) {
                     *bc += pc;
                 }
-                vals.push((l + ph, h, b));
-                rays += r + pr;
+                d.light += pieces.light;
+                d.mixed += pieces.mixed;
+                rays += d.rays + pieces.rays;
+                vals.push(d);
             }
             advance(vals.len() as u64);
             (vals, rays)
@@ -594,14 +656,16 @@ pub fn texels(
     let mut d = Direct {
         light: Vec::with_capacity(n),
         hemisphere: Vec::with_capacity(n),
+        mixed: Vec::with_capacity(n),
         directional: Vec::with_capacity(n),
         rays: 0,
     };
     for (v, r) in out {
-        for (l, h, b) in v {
-            d.light.push(l);
-            d.hemisphere.push(h);
-            d.directional.push(b);
+        for t in v {
+            d.light.push(t.light);
+            d.hemisphere.push(t.hemisphere);
+            d.mixed.push(t.mixed);
+            d.directional.push(t.directional);
         }
         d.rays += r;
     }
@@ -616,6 +680,10 @@ mod tests {
     fn point_light_inverse_square_and_cosine() {
         let light = Light {
             name: "p".into(),
+            node: String::new(),
+            node_index: 0,
+            mode: Default::default(),
+            node_mode: None,
             kind: LightKind::Point,
             intensity: Vec3::splat(10.0),
             position: Vec3::new(0.0, 2.0, 0.0),
@@ -634,6 +702,10 @@ mod tests {
     fn spot_cone_falloff() {
         let light = Light {
             name: "s".into(),
+            node: String::new(),
+            node_index: 0,
+            mode: Default::default(),
+            node_mode: None,
             kind: LightKind::Spot {
                 inner_cone_angle: 0.2,
                 outer_cone_angle: 0.4,

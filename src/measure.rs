@@ -11,7 +11,10 @@
 //! of the lights with MIS, Russian roulette). The reading is the sample mean
 //! and its standard error, σ / √N per channel: an unbiased estimate of the
 //! area-weighted mean irradiance / π over the node, buried parts included
-//! at what they receive (nothing, for a point inside a wall).
+//! at what they receive (nothing, for a point inside a wall). Like the
+//! lightmap, it leaves out the direct light of `indirect` and
+//! `shadowmask` lights ([`crate::scene::LightMode`]), and counts their
+//! bounces.
 //!
 //! Deterministic: samples are drawn in fixed chunks, each from its own
 //! random stream, and summed in chunk order.
@@ -106,7 +109,10 @@ impl<'s> Meter<'s> {
         {
             return Err(format!("no node named `{missing}`"));
         }
-        let tracer = Tracer::new(self.scene, &self.geometry, &self.rays, settings.sky);
+        let mut tracer = Tracer::new(self.scene, &self.geometry, &self.rays, settings.sky);
+        // What the lightmap holds: a mixed light's direct light is the
+        // engine's (its bounces are measured).
+        tracer.skip_mixed_direct = true;
         let mut by_instance: Vec<Vec<u32>> = vec![Vec::new(); self.scene.instances.len()];
         for (t, &i) in self.geometry.instance.iter().enumerate() {
             by_instance[i as usize].push(t as u32);

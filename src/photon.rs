@@ -379,7 +379,7 @@ pub fn bake_texels(
         config.seed,
         &|_| {},
     )
-    .total();
+    .baked();
     let rays = config.final_gather;
     // At most ~64 k precomputed points (each a k-nearest search).
     let pre = Precomputed::new(&map, k, (map.photons.len() / 65536).max(4));

@@ -148,6 +148,38 @@ pub struct InstanceReport {
     pub uv_rect: [f32; 4],
 }
 
+/// One punctual light and the mode it was baked in.
+#[derive(Clone, Debug, Serialize)]
+pub struct LightReport {
+    /// The light's name (its node's where it has none).
+    pub name: String,
+    /// Its node's name.
+    pub node: String,
+    /// `directional`, `point` or `spot`.
+    #[serde(rename = "type")]
+    pub kind: &'static str,
+    /// `baked`, `indirect`, `shadowmask` or `realtime`
+    /// ([`crate::scene::LightMode`]).
+    pub mode: &'static str,
+}
+
+impl LightReport {
+    /// The report line of `light`.
+    pub fn of(light: &crate::scene::Light) -> LightReport {
+        use crate::scene::LightKind;
+        LightReport {
+            name: light.name.clone(),
+            node: light.node.clone(),
+            kind: match light.kind {
+                LightKind::Directional => "directional",
+                LightKind::Point => "point",
+                LightKind::Spot { .. } => "spot",
+            },
+            mode: light.mode.name(),
+        }
+    }
+}
+
 /// The whole report.
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
@@ -165,6 +197,8 @@ pub struct Report {
     pub energy: Energy,
     /// Per instance.
     pub instances: Vec<InstanceReport>,
+    /// Per punctual light, with its bake mode.
+    pub lights: Vec<LightReport>,
     /// Non-fatal problems.
     pub warnings: Vec<String>,
 }

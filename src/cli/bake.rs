@@ -141,6 +141,12 @@ pub struct BakeArgs {
     /// Also write lightmap_<page>_debug.png (patches, texel validity) for the preview's debug views.
     #[arg(long)]
     pub debug_maps: bool,
+    /// A light's bake mode, by its light's or node's name (repeatable; overrides the node's
+    /// extras.radbake.mode and the config): baked (direct + bounced light in the lightmap),
+    /// indirect (bounced only; the engine draws its direct light), shadowmask (as indirect,
+    /// plus its occlusion in a shadowmask page), realtime (not baked).
+    #[arg(long = "light-mode", value_name = "NAME=MODE", value_parser = parse_light_mode)]
+    pub light_mode: Vec<(String, radbake::scene::LightMode)>,
     /// Starting settings, below the config file and flags [default: medium].
     #[arg(long, value_enum)]
     pub preset: Option<Preset>,
@@ -168,6 +174,21 @@ pub struct BakeArgs {
 }
 
 /// `on`/`off` (or `true`/`false`).
+/// `NAME=MODE` of `--light-mode`.
+fn parse_light_mode(s: &str) -> Result<(String, radbake::scene::LightMode), String> {
+    use radbake::scene::LightMode;
+    let names = LightMode::ALL.map(LightMode::name).join(", ");
+    let (name, mode) = s
+        .rsplit_once('=')
+        .ok_or_else(|| format!("`{s}` is not NAME=MODE (MODE one of {names})"))?;
+    if name.is_empty() {
+        return Err(format!("`{s}`: the light's name is empty"));
+    }
+    let mode = LightMode::parse(mode)
+        .ok_or_else(|| format!("`{mode}` is not a light mode (one of {names})"))?;
+    Ok((name.to_owned(), mode))
+}
+
 fn parse_on_off(s: &str) -> Result<bool, String> {
     match s {
         "on" | "true" => Ok(true),
@@ -239,6 +260,9 @@ impl BakeArgs {
         if self.debug_maps {
             c.debug_maps = true;
         }
+        for (name, mode) in &self.light_mode {
+            c.light_modes.lights.insert(name.clone(), *mode);
+        }
         c.validate()?;
         Ok(c)
     }
@@ -255,7 +279,11 @@ pub fn run(args: &BakeArgs) -> Outcome {
         max_memory: args.max_memory.map(|mb| mb.saturating_mul(1 << 20)),
         ..Default::default()
     };
-    let scene = radbake::scene::load(&args.scene, &load_options).map_err(lib_err)?;
+    let mut scene = radbake::scene::load(&args.scene, &load_options).map_err(lib_err)?;
+    config.light_modes.apply(&mut scene).map_err(|e| {
+        let (code, message) = lib_err(e);
+        (code, format!("{}: {message}", args.scene.display()))
+    })?;
     let import = StageTime {
         stage: "import".into(),
         seconds: start.elapsed().as_secs_f64(),

@@ -143,7 +143,32 @@ pub fn baked_glb(
     let pages = lightmap_textures(&mut doc, &mut b, pages);
     let prims = reindex_primitives(scene, atlas, &doc, &mut b, &view_offsets, name)?;
     lightmapped_instances(scene, atlas, &mut doc, &prims, &pages);
+    light_modes(scene, &mut doc);
     Ok(finish(doc, b))
+}
+
+/// Writes each light's bake mode to its node's `extras.radbake.mode` (the
+/// key the bake reads), so an engine or the preview knows which lights
+/// to draw in real time whatever set the mode (the node, the config or the
+/// CLI). A node whose `extras` is not an object keeps it (the manifest
+/// lists the mode as well).
+fn light_modes(scene: &Scene, doc: &mut Value) {
+    for light in &scene.lights {
+        let Some(node) = doc["nodes"].get_mut(light.node_index) else {
+            continue;
+        };
+        let Some(node) = node.as_object_mut() else {
+            continue;
+        };
+        let extras = node.entry("extras").or_insert_with(|| json!({}));
+        let Some(extras) = extras.as_object_mut() else {
+            continue;
+        };
+        let radbake = extras.entry("radbake").or_insert_with(|| json!({}));
+        if let Some(radbake) = radbake.as_object_mut() {
+            radbake.insert("mode".into(), json!(light.mode.name()));
+        }
+    }
 }
 
 /// An [`Error::Encode`] for the output `name`.

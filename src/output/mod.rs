@@ -418,6 +418,7 @@ pub fn write_engine_outputs(
         "baked_gltf": if scene.source.is_some() { serde_json::json!(glb_name) } else { serde_json::Value::Null },
         "pages": pages,
         "instances": instances,
+        "lights": bake.scene.lights.iter().map(crate::report::LightReport::of).collect::<Vec<_>>(),
         "probes": probes_entry,
     });
     let path = out_dir.join("manifest.json");

@@ -32,7 +32,7 @@ use crate::probes::{self, Probes};
 use crate::progress::Progress;
 use crate::raycast::RayCaster;
 use crate::report::StageTime;
-use crate::scene::Scene;
+use crate::scene::{LightMode, Scene};
 use crate::texels::{self, Texels};
 use log::Log;
 pub use maps::Maps;
@@ -79,6 +79,20 @@ pub fn bake<'s>(
     progress: &dyn Progress,
 ) -> Result<Bake<'s>> {
     config.validate()?;
+    config.light_modes.check(scene)?;
+    if let Some(l) = scene
+        .lights
+        .iter()
+        .find(|l| l.mode == LightMode::Shadowmask)
+    {
+        return Err(crate::Error::Config {
+            key: "light_modes".into(),
+            message: format!(
+                "light `{}`: shadowmask mode is not built yet (its pages come with issue #23's next part); use indirect",
+                l.name
+            ),
+        });
+    }
     let mut log = Log::new(progress, input_warnings(scene));
 
     log.begin("unwrap", 0);
@@ -122,6 +136,7 @@ pub fn bake<'s>(
         let inputs = probes::Inputs {
             s: &surfaces,
             texel_values: &maps.lightmaps.texel_values,
+            mixed: &light.mixed,
             specs: &scene.probe_volumes,
         };
         let p = probes::bake(&inputs, config, &|n| progress.advance(n));

@@ -108,11 +108,15 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
         direct: direct.parts.rays,
         ..Rays::default()
     };
+    let mixed = direct.mixed();
     if config.final_gather == 0 {
+        // The lightmap leaves the mixed lights' direct light out.
+        let baked = direct.parts.baked();
         return Ok(TexelLight {
             valid: vec![true; first.len()],
-            values: first,
-            direct: direct.texel,
+            values: lightmap::first_pass(s.texels, s.patches, &baked, &indirect),
+            direct: baked,
+            mixed,
             directional: None,
             ao: None,
             rays,
@@ -167,6 +171,7 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
     let light = gathered_light(s, atlas, config, direct, g, log);
     Ok(TexelLight {
         rays,
+        mixed,
         patch_light: Some(patch_light),
         ..light
     })
@@ -204,6 +209,18 @@ fn gatherer<'a>(
         direct.gathering.then_some((&direct.lights, direct.mis)),
     )
     .with_known(known)
+}
+
+impl DirectLight {
+    /// The mixed lights' direct light per texel; empty where the scene has
+    /// no mixed light.
+    fn mixed(&self) -> Vec<Vec3> {
+        if self.lights.punctual.iter().any(|l| l.mode.is_mixed()) {
+            self.parts.mixed.clone()
+        } else {
+            Vec::new()
+        }
+    }
 }
 
 /// The direct solver is O(n³): refuse more than `direct_max_patches`.
@@ -437,7 +454,7 @@ fn gathered_light(
             .map(|(l, h)| *l + *h)
             .collect()
     } else {
-        direct.texel
+        direct.parts.baked()
     };
     let mut indirect = g.indirect;
     if config.denoise {
@@ -472,6 +489,7 @@ fn gathered_light(
         directional,
         ao: (!g.ao.is_empty()).then_some(g.ao),
         rays: Rays::default(),
+        mixed: Vec::new(),
         patch_light: None,
     }
 }

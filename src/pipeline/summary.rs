@@ -158,6 +158,12 @@ impl Bake<'_> {
             },
             energy: self.energy(),
             instances: self.instance_reports(),
+            lights: self
+                .scene
+                .lights
+                .iter()
+                .map(crate::report::LightReport::of)
+                .collect(),
             warnings: self.warnings.clone(),
         }
     }

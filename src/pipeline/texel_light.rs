@@ -18,6 +18,11 @@ pub struct TexelLight {
     pub valid: Vec<bool>,
     /// The direct part of `values` per texel (zero for the references).
     pub direct: Vec<Vec3>,
+    /// The mixed lights' direct light per texel (irradiance / π; empty
+    /// where the scene has none): not in `values` (the engine draws it),
+    /// but on the surfaces all the same, so the probes' rays add it where
+    /// they land.
+    pub mixed: Vec<Vec3>,
     /// The directional part b per texel (`--directional sh` with the final
     /// gather): irradiance / π for a normal n is a + n · b.
     pub directional: Option<Vec<Directional>>,

@@ -9,7 +9,8 @@ use super::radiosity;
 use super::texel_light::{Rays, TexelLight};
 use crate::atlas::Atlas;
 use crate::config::{BakeConfig, Method};
-use crate::error::Result;
+use crate::direct::{self, Lights, Mis};
+use crate::error::{Error, Result};
 use crate::form_factors::raycast::Surfaces;
 use crate::trace::{self, Tracer};
 use glam::Vec3;
@@ -22,14 +23,42 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
     match config.method {
         Method::Radiosity => radiosity::run(s, atlas, config, log),
         Method::Pathtrace => Ok(pathtrace(s, config, log)),
-        Method::Photon => Ok(photon(s, config, log)),
+        Method::Photon => photon(s, config, log),
     }
+}
+
+/// The mixed lights' direct light per texel, for a reference method's
+/// probes: the bake's direct pass over those lights alone (shadow rays
+/// only). Empty where the scene has no mixed light.
+fn mixed_direct(s: &Surfaces, config: &BakeConfig) -> Vec<Vec3> {
+    let none = vec![false; s.scene.materials.len()];
+    let mut lights = Lights::new(s.scene, s.geometry, &none, Vec3::ZERO);
+    lights.punctual.retain(|l| l.mode.is_mixed());
+    if lights.punctual.is_empty() {
+        return Vec::new();
+    }
+    let mis = Mis {
+        light: 1,
+        hemisphere: 1,
+    };
+    direct::texels(
+        s,
+        &lights,
+        0,
+        0,
+        mis,
+        config.supersample,
+        config.seed,
+        &|_| {},
+    )
+    .mixed
 }
 
 /// The path-traced reference: `path_samples` paths from points spread over
 /// each whole texel (every piece, by area).
 fn pathtrace(s: &Surfaces, config: &BakeConfig, log: &mut Log) -> TexelLight {
-    let tracer = Tracer::new(s.scene, s.geometry, s.rays, Vec3::from(config.sky));
+    let mut tracer = Tracer::new(s.scene, s.geometry, s.rays, Vec3::from(config.sky));
+    tracer.skip_mixed_direct = true;
     let progress = log.progress();
     log.begin("path_trace", s.texels.len() as u64);
     let (values, valid) = trace::reference_texels(
@@ -42,19 +71,35 @@ fn pathtrace(s: &Surfaces, config: &BakeConfig, log: &mut Log) -> TexelLight {
     );
     log.end("path_trace");
     let paths = s.texels.len() as u64 * config.path_samples as u64;
-    reference(values, valid, paths)
+    TexelLight {
+        mixed: mixed_direct(s, config),
+        ..reference(values, valid, paths)
+    }
 }
 
 /// Photon mapping with Christensen's precomputed irradiance read by the
 /// final gather.
-fn photon(s: &Surfaces, config: &BakeConfig, log: &mut Log) -> TexelLight {
+///
+/// # Errors
+/// Mixed lights without the final gather: the photons' density estimate
+/// at a texel cannot tell their direct light from the rest.
+fn photon(s: &Surfaces, config: &BakeConfig, log: &mut Log) -> Result<TexelLight> {
+    if config.final_gather == 0 && s.scene.lights.iter().any(|l| l.mode.is_mixed()) {
+        return Err(Error::Config {
+            key: "light_modes".into(),
+            message: "method = \"photon\" leaves an indirect or shadowmask light's direct light out only through the final gather (final_gather > 0)".into(),
+        });
+    }
     let tracer = Tracer::new(s.scene, s.geometry, s.rays, Vec3::from(config.sky));
     let progress = log.progress();
     log.begin("photons", s.texels.len() as u64);
     let (values, valid, rays) =
         crate::photon::bake_texels(s, &tracer, config, &|n| progress.advance(n));
     log.end("photons");
-    reference(values, valid, rays)
+    Ok(TexelLight {
+        mixed: mixed_direct(s, config),
+        ..reference(values, valid, rays)
+    })
 }
 
 /// A reference method's product: values and validity, its rays counted as
@@ -64,6 +109,7 @@ fn reference(values: Vec<Vec3>, valid: Vec<bool>, rays: u64) -> TexelLight {
         direct: vec![Vec3::ZERO; values.len()],
         values,
         valid,
+        mixed: Vec::new(),
         directional: None,
         ao: None,
         rays: Rays {

@@ -117,7 +117,8 @@ impl ProbeLight<'_> {
         for k in 0..m {
             cast += self.light_sample(p, net.point(k), mis, &mut sh) as u32;
         }
-        for light in &self.lights.punctual {
+        // Mixed lights' direct light is the engine's to draw.
+        for light in self.lights.punctual.iter().filter(|l| !l.mode.is_mixed()) {
             if let Some((e, to, dist)) = punctual_incident(light, p) {
                 cast += 1;
                 if punctual_unoccluded(self.s.rays, p, to, dist) {

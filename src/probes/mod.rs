@@ -188,6 +188,9 @@ pub struct Inputs<'a> {
     pub s: &'a Surfaces<'a>,
     /// The lightmap value (incident irradiance / π) per texel, filled.
     pub texel_values: &'a [Vec3],
+    /// The mixed lights' direct light per texel (irradiance / π; may be
+    /// empty), which the lightmap leaves out but the surfaces reflect.
+    pub mixed: &'a [Vec3],
     /// The boxes the scene places (empty: one box over the scene).
     pub specs: &'a [VolumeSpec],
 }
@@ -206,12 +209,15 @@ pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)
     );
     let sampled = sampled_materials(s.scene, g, config.emitters);
     let lights = Lights::new(s.scene, g, &sampled, Vec3::from(config.sky));
+    // What the surfaces reflect: the lightmap, plus the mixed lights'
+    // direct light, which the lightmap leaves to the engine.
     let radiance = s
         .texels
         .albedo
         .iter()
         .zip(inputs.texel_values)
-        .map(|(a, v)| *a * *v)
+        .enumerate()
+        .map(|(t, (a, v))| *a * (*v + inputs.mixed.get(t).copied().unwrap_or_default()))
         .collect();
     let pl = ProbeLight {
         s,

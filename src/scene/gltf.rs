@@ -10,7 +10,8 @@
 
 use super::texture::{Filter, Filters, Texture, TextureRef, Wrap};
 use super::{
-    Alpha, Camera, ImportStats, Instance, Light, LightKind, Material, Mesh, Scene, Specular,
+    Alpha, Camera, ImportStats, Instance, Light, LightKind, LightMode, Material, Mesh, Scene,
+    Specular,
 };
 use crate::error::{Error, Result};
 use base64::Engine as _;
@@ -428,9 +429,15 @@ fn import_nodes(
         }
         if let Some(light) = node.light() {
             check_light_json(ctx, document, light.index())?;
-            scene
-                .lights
-                .push(import_light(ctx, &light, &world, &node_name)?);
+            let mut light = import_light(ctx, &light, &world, &node_name)?;
+            light.node_index = node.index();
+            light.node_mode = extras.mode;
+            light.mode = extras.mode.unwrap_or_default();
+            scene.lights.push(light);
+        } else if extras.mode.is_some() {
+            scene.warnings.push(format!(
+                "{location}.extras.radbake.mode: the node has no light; ignored"
+            ));
         }
         if let Some(camera) = node.camera() {
             if let gltf::camera::Projection::Perspective(p) = camera.projection() {
@@ -457,12 +464,15 @@ struct NodeExtras {
     probe_volume: Option<Option<f32>>,
     /// `dynamic: true`: not baked, lit by probes.
     dynamic: bool,
+    /// `mode`: the bake mode of the node's light.
+    mode: Option<LightMode>,
     /// Keys this version does not know (warned about).
     unknown: Vec<String>,
 }
 
-/// Reads `extras.radbake` of `node`: `{"probe_volume": {"spacing": m}}`
-/// and `{"dynamic": true}`. A spacing that is not a positive number is an
+/// Reads `extras.radbake` of `node`: `{"probe_volume": {"spacing": m}}`,
+/// `{"dynamic": true}` and a light's `{"mode": "baked" | "indirect" |
+/// "shadowmask" | "realtime"}`. A spacing that is not a positive number is an
 /// error naming the node; a key this version does not know is a warning.
 fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeExtras> {
     let mut out = NodeExtras::default();
@@ -503,8 +513,14 @@ fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeEx
                 }
                 out.probe_volume = Some(spacing);
             }
+            "mode" => {
+                let names = LightMode::ALL.map(LightMode::name).join(", ");
+                out.mode = Some(v.as_str().and_then(LightMode::parse).ok_or_else(|| {
+                    ctx.invalid(format!("{at}.mode"), format!("must be one of {names}"))
+                })?);
+            }
             other => out.unknown.push(format!(
-                "{at}: unknown key `{other}` ignored (known: dynamic, probe_volume)"
+                "{at}: unknown key `{other}` ignored (known: dynamic, mode, probe_volume)"
             )),
         }
     }
@@ -1280,6 +1296,10 @@ fn import_light(
             .name()
             .map(str::to_owned)
             .unwrap_or_else(|| node_name.to_owned()),
+        node: node_name.to_owned(),
+        node_index: 0,
+        mode: LightMode::Baked,
+        node_mode: None,
         kind,
         intensity: color * intensity,
         position: world.transform_point3(Vec3::ZERO),

@@ -116,6 +116,11 @@ pub struct Tracer<'a> {
     pub rays: &'a RayCaster,
     /// Every emissive triangle (sampled by power), punctual lights, sky.
     pub lights: Lights,
+    /// The first diffuse vertex (depth 0: a texel) leaves the mixed
+    /// lights' direct light out, as the lightmap does
+    /// ([`crate::scene::LightMode::is_mixed`]); their light still arrives
+    /// at every later vertex.
+    pub skip_mixed_direct: bool,
     /// Final-pass mode: the lightmaps read at gather hits.
     pub lightmaps: Option<LightmapLookup<'a>>,
     /// Russian roulette starts after this many diffuse bounces.
@@ -133,6 +138,7 @@ impl<'a> Tracer<'a> {
             geometry,
             rays,
             lights: Lights::new(scene, geometry, &all, sky),
+            skip_mixed_direct: false,
             lightmaps: None,
             rr_depth: 3,
             max_depth: 64,
@@ -304,6 +310,9 @@ impl<'a> Tracer<'a> {
         let origin = offset_ray_origin(p, n);
         let mut h = Vec3::ZERO;
         for light in &self.lights.punctual {
+            if depth == 0 && self.skip_mixed_direct && light.mode.is_mixed() {
+                continue;
+            }
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
                 if punctual_unoccluded(self.rays, origin, dir, dist) {
                     h += value;
