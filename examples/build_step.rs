@@ -18,7 +18,8 @@ fn main() -> anyhow::Result<()> {
     println!("cargo:rerun-if-changed={}", scene_path.display());
 
     let config = BakeConfig::preview();
-    let scene = radbake::scene::load(&scene_path, &Default::default())?;
+    let mut scene = radbake::scene::load(&scene_path, &Default::default())?;
+    config.light_modes.apply(&mut scene)?;
     let hash = incremental::content_hash(&scene, &config);
     let stem = scene_path
         .file_stem()

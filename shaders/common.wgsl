@@ -21,7 +21,59 @@ struct Globals {
     tone_map: u32,
     // Render target size in pixels.
     viewport: vec2<f32>,
-    _pad: vec2<f32>,
+    // Lights used of `lights`.
+    light_count: u32,
+    _pad: f32,
+    // The lights an engine draws in real time (modes indirect, realtime).
+    lights: array<PreviewLight, 8>,
+}
+
+// One punctual light drawn in real time (Rust: gpu::PreviewLight).
+struct PreviewLight {
+    // xyz: position; w: 0 directional, 1 point, 2 spot.
+    position_kind: vec4<f32>,
+    // xyz: the direction the light points to; w: range (0: none).
+    direction_range: vec4<f32>,
+    // rgb: intensity (W/sr; W/m² for directional).
+    intensity: vec4<f32>,
+    // x, y: the spot cone's scale and offset.
+    cone: vec4<f32>,
+}
+
+// Irradiance / π at `p` (unit normal `n`) from the real-time lights,
+// unshadowed, with the bake's falloff (direct::punctual_incident): E for a
+// directional light; I / d² × KHR_lights_punctual's range window and cone
+// falloff for point and spot lights; times cos θ / π.
+fn realtime_light(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    var sum = vec3<f32>(0.0);
+    for (var i = 0u; i < min(globals.light_count, 8u); i++) {
+        let l = globals.lights[i];
+        let kind = u32(l.position_kind.w + 0.5);
+        var to_light = -l.direction_range.xyz;
+        var e = l.intensity.rgb;
+        if kind != 0u {
+            let d = l.position_kind.xyz - p;
+            let dist2 = dot(d, d);
+            if dist2 <= 0.0 {
+                continue;
+            }
+            let dist = sqrt(dist2);
+            to_light = d / dist;
+            var atten = 1.0 / dist2;
+            let range = l.direction_range.w;
+            if range > 0.0 {
+                let x = dist / range;
+                atten *= clamp(1.0 - x * x * x * x, 0.0, 1.0);
+            }
+            if kind == 2u {
+                let a = clamp(dot(l.direction_range.xyz, -to_light) * l.cone.x + l.cone.y, 0.0, 1.0);
+                atten *= a * a;
+            }
+            e = e * atten;
+        }
+        sum += e * max(dot(n, to_light), 0.0) / 3.14159265358979;
+    }
+    return sum;
 }
 
 // Per material (group 1, binding 0).

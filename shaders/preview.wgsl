@@ -117,7 +117,10 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if probe_lit {
         lightmap = in.probe.rgb;
     }
-    var lit = base.rgb * lightmap + emissive;
+    // The lights an engine draws in real time add their direct light,
+    // unshadowed (the lightmap and probes hold only their bounces).
+    let realtime = realtime_light(in.world, normalize(in.normal));
+    var lit = base.rgb * (lightmap + realtime) + emissive;
     // An invalid probe's sphere: plain red radiance.
     if in.probe.w > 0.5 * (PROBE_LIT + PROBE_INVALID) {
         lightmap = vec3<f32>(1.0, 0.0, 0.0);

@@ -357,3 +357,92 @@ fn cli_light_mode() {
         assert!(help.contains(mode), "--help names {mode}");
     }
 }
+
+/// Mean linear RGB of the 3 × 3 pixels at the centre of `png` (sRGB).
+fn centre_linear(png: &Path) -> Vec3 {
+    let img = image::open(png).unwrap().to_rgba8();
+    let (w, h) = img.dimensions();
+    let lin = |c: u8| {
+        let c = c as f32 / 255.0;
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    let mut sum = Vec3::ZERO;
+    for y in h / 2 - 1..=h / 2 + 1 {
+        for x in w / 2 - 1..=w / 2 + 1 {
+            let p = img.get_pixel(x, y);
+            sum += Vec3::new(lin(p[0]), lin(p[1]), lin(p[2]));
+        }
+    }
+    sum / 9.0
+}
+
+/// What the preview shows is what an engine would: the `indirect` sun's
+/// bake, with the sun's direct light drawn in real time, looks as the
+/// `baked` sun's bake (the plane is unshadowed), and its lightmap alone
+/// lacks exactly ρ E s_y / π. Skipped, saying why, without a graphics
+/// adapter.
+#[test]
+fn preview_draws_indirect_lights_in_real_time() {
+    let exe = env!("CARGO_BIN_EXE_radbake");
+    let to_sun = Vec3::new(0.3, 1.0, 0.2).normalize();
+    let scene = sun_plane("modes-preview", to_sun, true, None);
+    let dir = temp_dir("modes-preview-out");
+    let mut shots = Vec::new();
+    for mode in ["baked", "indirect"] {
+        let out = dir.join(mode);
+        let bake = Command::new(exe)
+            .args([
+                "bake",
+                "-q",
+                "--force",
+                "--texels-per-meter",
+                "2",
+                "--probes",
+                "off",
+            ])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&out)
+            .arg(format!("--sky={SKY},{SKY},{SKY}"))
+            .args(["--light-mode", &format!("sun={mode}")])
+            .output()
+            .unwrap();
+        assert!(
+            bake.status.success(),
+            "{}",
+            String::from_utf8_lossy(&bake.stderr)
+        );
+        for view in ["lit", "lightmap"] {
+            let png = dir.join(format!("{mode}-{view}.png"));
+            let run = Command::new(exe)
+                .arg("preview")
+                .arg(out.join("ground.baked.glb"))
+                .args(["--headless", "--out"])
+                .arg(&png)
+                .args(["--size", "64x48", "--tone-map", "none", "--view", view])
+                .args(["--look-from=0,6,0.01", "--look-at=0,0,0", "--exposure=-1"])
+                .output()
+                .unwrap();
+            let stderr = String::from_utf8_lossy(&run.stderr);
+            if !run.status.success() && stderr.contains("no graphics adapter") {
+                eprintln!("SKIPPED (no GPU or software adapter on this machine): {stderr}");
+                return;
+            }
+            assert!(run.status.success(), "preview failed: {stderr}");
+            // EV −1: the lightmap view (up to 1.7) stays below 1.
+            shots.push(centre_linear(&png) * 2.0);
+        }
+    }
+    let [baked_lit, baked_lm, ind_lit, ind_lm] = [shots[0], shots[1], shots[2], shots[3]];
+    let direct = SUN * to_sun.y / PI;
+    eprintln!("lit: baked {baked_lit}, indirect {ind_lit}; lightmap: {baked_lm}, {ind_lm}; E s_y/π {direct}");
+    // 8-bit sRGB output: a step is under 1 % at these values.
+    assert!((ind_lit - baked_lit).abs().max_element() < 0.015 * baked_lit.max_element());
+    assert!((ind_lit.x / (RHO * (SKY + direct)) - 1.0).abs() < 0.015);
+    // The lightmap views (irradiance / π, no albedo) differ by E s_y / π.
+    assert!(((baked_lm - ind_lm).x / direct - 1.0).abs() < 0.02);
+}

@@ -30,8 +30,73 @@ pub struct Globals {
     pub tone_map: u32,
     /// Render target size in pixels.
     pub viewport: [f32; 2],
+    /// Lights used of `lights`.
+    pub light_count: u32,
     /// Padding to the WGSL struct's 16-byte alignment.
-    pub _pad: [f32; 2],
+    pub _pad: f32,
+    /// The lights the engine draws in real time (modes `indirect` and
+    /// `realtime`, [`crate::scene::LightMode`]): their direct light,
+    /// unshadowed, is added to the lightmap's.
+    pub lights: [PreviewLight; MAX_LIGHTS],
+}
+
+/// Most real-time lights the preview draws.
+pub const MAX_LIGHTS: usize = 8;
+
+/// WGSL `PreviewLight`: one punctual light drawn in real time, with the
+/// bake's own falloff ([`crate::direct::punctual_incident`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct PreviewLight {
+    /// xyz: position (point, spot); w: 0 directional, 1 point, 2 spot.
+    pub position_kind: [f32; 4],
+    /// xyz: the direction the light points to; w: range (0: none).
+    pub direction_range: [f32; 4],
+    /// rgb: intensity (W/sr; W/m² for directional); w unused.
+    pub intensity: [f32; 4],
+    /// x, y: the spot cone's scale and offset (KHR_lights_punctual's
+    /// falloff: (cos θ · scale + offset)², clamped); zw unused.
+    pub cone: [f32; 4],
+}
+
+impl PreviewLight {
+    /// The preview's copy of `light`.
+    pub fn of(light: &crate::scene::Light) -> PreviewLight {
+        use crate::scene::LightKind;
+        let (kind, cone) = match light.kind {
+            LightKind::Directional => (0.0, [0.0; 4]),
+            LightKind::Point => (1.0, [0.0; 4]),
+            LightKind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => {
+                let scale = 1.0 / (inner_cone_angle.cos() - outer_cone_angle.cos()).max(0.001);
+                (2.0, [scale, -outer_cone_angle.cos() * scale, 0.0, 0.0])
+            }
+        };
+        PreviewLight {
+            position_kind: light.position.extend(kind).to_array(),
+            direction_range: light
+                .direction
+                .extend(light.range.filter(|r| *r > 0.0).unwrap_or(0.0))
+                .to_array(),
+            intensity: light.intensity.extend(0.0).to_array(),
+            cone,
+        }
+    }
+
+    /// The lights of `scene` the engine draws in real time (every mode but
+    /// `baked`), at most [`MAX_LIGHTS`], and how many more there were.
+    pub fn realtime(scene: &crate::scene::Scene) -> (Vec<PreviewLight>, usize) {
+        let all: Vec<PreviewLight> = scene
+            .lights
+            .iter()
+            .filter(|l| l.mode != crate::scene::LightMode::Baked)
+            .map(PreviewLight::of)
+            .collect();
+        let extra = all.len().saturating_sub(MAX_LIGHTS);
+        (all.into_iter().take(MAX_LIGHTS).collect(), extra)
+    }
 }
 
 /// `Material::flags`: the base colour texture is used.
@@ -154,7 +219,19 @@ pub fn layouts() -> Vec<Layout> {
                 ("bicubic", offset_of!(Globals, bicubic)),
                 ("tone_map", offset_of!(Globals, tone_map)),
                 ("viewport", offset_of!(Globals, viewport)),
+                ("light_count", offset_of!(Globals, light_count)),
                 ("_pad", offset_of!(Globals, _pad)),
+                ("lights", offset_of!(Globals, lights)),
+            ],
+        ),
+        (
+            "PreviewLight",
+            size_of::<PreviewLight>(),
+            vec![
+                ("position_kind", offset_of!(PreviewLight, position_kind)),
+                ("direction_range", offset_of!(PreviewLight, direction_range)),
+                ("intensity", offset_of!(PreviewLight, intensity)),
+                ("cone", offset_of!(PreviewLight, cone)),
             ],
         ),
         (

@@ -11,7 +11,7 @@
 //! three.js's canvas.
 
 use super::camera::Camera;
-use super::gpu::{self, Globals, Vertex};
+use super::gpu::{self, Globals, PreviewLight, Vertex};
 use super::mips;
 use super::model::Model;
 use super::options::{Settings, ViewMode};
@@ -97,11 +97,26 @@ pub struct Renderer {
     /// The scene's textures (kept for [`Renderer::texture_mip_levels`]).
     scene_textures: Vec<wgpu::Texture>,
     depth: Option<(wgpu::TextureView, u32, u32)>,
+    /// The lights drawn in real time ([`PreviewLight::realtime`]).
+    lights: Vec<PreviewLight>,
     size: (u32, u32),
     /// The camera the next frame is drawn from.
     pub camera: Camera,
     /// Display settings of the next frame.
     pub settings: Settings,
+}
+
+/// The scene's lights that an engine draws in real time; a warning where
+/// there are more than the preview draws.
+fn realtime_lights(scene: &crate::scene::Scene) -> Vec<PreviewLight> {
+    let (lights, extra) = PreviewLight::realtime(scene);
+    if extra > 0 {
+        eprintln!(
+            "warning: the preview draws {} real-time lights; {extra} more are not drawn",
+            gpu::MAX_LIGHTS
+        );
+    }
+    lights
 }
 
 fn address_mode(w: Wrap) -> wgpu::AddressMode {
@@ -296,6 +311,7 @@ impl Renderer {
                 })
                 .collect(),
             probes: model.probes.clone().zip(model.probe_material),
+            lights: realtime_lights(&model.scene),
             spheres: None,
             material_groups,
             double_sided: model.materials.iter().map(|m| m.double_sided).collect(),
@@ -395,7 +411,9 @@ impl Renderer {
             bicubic: s.bicubic as u32,
             tone_map: s.tone_map as u32,
             viewport: [w as f32, h as f32],
-            _pad: [0.0; 2],
+            light_count: self.lights.len() as u32,
+            _pad: 0.0,
+            lights: std::array::from_fn(|i| self.lights.get(i).copied().unwrap_or_default()),
         };
         self.queue
             .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));

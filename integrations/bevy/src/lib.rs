@@ -27,11 +27,13 @@
 //!   `affects_lightmapped_meshes: false`;
 //! - keeps Bevy's `GlobalAmbientLight` off lightmapped meshes (the bake
 //!   holds the sky);
-//! - switches `affects_lightmapped_mesh_diffuse` off on the scene's lights
-//!   (radbake bakes every light: their diffuse light on lightmapped meshes is
-//!   in the lightmap) and scales their intensity by the same factor, so their
-//!   specular and their light on dynamic objects stay in proportion to the
-//!   bake.
+//! - switches `affects_lightmapped_mesh_diffuse` off on the scene's baked
+//!   lights (their diffuse light on lightmapped meshes is in the lightmap)
+//!   and keeps it on for the lights radbake left to the engine (their
+//!   node's `extras.radbake.mode`, which radbake writes: `indirect`, whose
+//!   bounces only are in the bake, and `realtime`); every light's intensity
+//!   is scaled by the same factor, so its specular and its light on dynamic
+//!   objects stay in proportion to the bake.
 //!
 //! **Units and exposure.** A radbake texel is incident irradiance / π
 //! (`L_out = albedo × lightmap + emission`), in the glTF's own units. Bevy
@@ -48,7 +50,7 @@
 
 use bevy::asset::io::Reader;
 use bevy::asset::{AssetLoader, LoadContext, RecursiveDependencyLoadState};
-use bevy::gltf::{Gltf, GltfMesh, GltfNode};
+use bevy::gltf::{Gltf, GltfExtras, GltfMesh, GltfNode};
 use bevy::light::{IrradianceVolume, LightProbe};
 use bevy::pbr::Lightmap;
 use bevy::platform::collections::{HashMap, HashSet};
@@ -124,8 +126,12 @@ pub struct RadbakeApplied {
     pub missing: Vec<String>,
     /// Irradiance volumes spawned.
     pub volumes: usize,
-    /// Lights switched off for lightmapped diffuse.
+    /// Baked lights, switched off for lightmapped diffuse.
     pub lights: usize,
+    /// Lights radbake left to the engine (modes `indirect` and `realtime`,
+    /// from their glTF nodes' `extras.radbake.mode`): they keep lighting
+    /// lightmapped meshes in real time.
+    pub realtime_lights: usize,
 }
 
 /// On a [`RadbakeBake`] entity whose manifest, glTF or one of their files
@@ -291,6 +297,8 @@ fn spawn_baked_scenes(
     mut commands: Commands,
     bakes: Waiting,
     server: Res<AssetServer>,
+    parents: Query<&ChildOf>,
+    extras: Query<&GltfExtras>,
     manifests: Res<Assets<RadbakeManifest>>,
     gltfs: Res<Assets<Gltf>>,
 ) {
@@ -359,6 +367,8 @@ fn apply_bakes(
         Query<&mut SpotLight>,
         Query<&mut DirectionalLight>,
     )>,
+    parents: Query<&ChildOf>,
+    extras: Query<&GltfExtras>,
     manifests: Res<Assets<RadbakeManifest>>,
     gltfs: Res<Assets<Gltf>>,
     gltf_nodes: Res<Assets<GltfNode>>,
@@ -431,7 +441,9 @@ fn apply_bakes(
                 applied.volumes += 1;
             }
         }
-        applied.lights = baked_lights(&descendants, &mut lights, settings.exposure);
+        let realtime = |e: Entity| light_mode(e, &parents, &extras).is_some_and(|m| m != "baked");
+        (applied.lights, applied.realtime_lights) =
+            baked_lights(&descendants, &mut lights, settings.exposure, &realtime);
         if !applied.missing.is_empty() {
             warn!(
                 "radbake: {} baked instances not found in the scene: {:?}",
@@ -440,8 +452,8 @@ fn apply_bakes(
             );
         }
         info!(
-            "radbake: {} lightmapped meshes, {} irradiance volumes, {} lights",
-            applied.lightmapped, applied.volumes, applied.lights
+            "radbake: {} lightmapped meshes, {} irradiance volumes, {} baked lights, {} real-time lights",
+            applied.lightmapped, applied.volumes, applied.lights, applied.realtime_lights
         );
         commands.entity(root).insert(applied);
     }
@@ -463,9 +475,23 @@ fn instance_meshes(
         .unwrap_or_default()
 }
 
-/// Every light of the scene is in the bake: its diffuse light on lightmapped
-/// meshes is switched off and its intensity scaled by `exposure` (see the
-/// crate's doc). Returns how many lights.
+/// The bake mode radbake wrote on a light's glTF node: Bevy's glTF loader
+/// spawns the light as a child of its node's entity, which carries the
+/// node's extras (`{"radbake": {"mode": …}}`). `None` where there is none.
+fn light_mode(
+    light: Entity,
+    parents: &Query<&ChildOf>,
+    extras: &Query<&GltfExtras>,
+) -> Option<String> {
+    let node = parents.get(light).ok()?.parent();
+    let value: serde_json::Value = serde_json::from_str(&extras.get(node).ok()?.value).ok()?;
+    value["radbake"]["mode"].as_str().map(str::to_owned)
+}
+
+/// The scene's lights: each one's intensity is scaled by `exposure` (see
+/// the crate's doc); a baked one's diffuse light on lightmapped meshes is
+/// switched off (it is in the lightmap), a `realtime(e)` one's kept.
+/// Returns how many lights of each.
 fn baked_lights(
     entities: &[Entity],
     lights: &mut ParamSet<(
@@ -474,26 +500,34 @@ fn baked_lights(
         Query<&mut DirectionalLight>,
     )>,
     exposure: f32,
-) -> usize {
-    let mut n = 0;
+    realtime: &dyn Fn(Entity) -> bool,
+) -> (usize, usize) {
+    let (mut baked, mut live) = (0, 0);
     for &e in entities {
+        let engine = realtime(e);
+        let mut found = false;
         if let Ok(mut l) = lights.p0().get_mut(e) {
-            l.affects_lightmapped_mesh_diffuse = false;
+            l.affects_lightmapped_mesh_diffuse = engine;
             l.intensity *= exposure;
-            n += 1;
+            found = true;
         }
         if let Ok(mut l) = lights.p1().get_mut(e) {
-            l.affects_lightmapped_mesh_diffuse = false;
+            l.affects_lightmapped_mesh_diffuse = engine;
             l.intensity *= exposure;
-            n += 1;
+            found = true;
         }
         if let Ok(mut l) = lights.p2().get_mut(e) {
-            l.affects_lightmapped_mesh_diffuse = false;
+            l.affects_lightmapped_mesh_diffuse = engine;
             l.illuminance *= exposure;
-            n += 1;
+            found = true;
+        }
+        match (found, engine) {
+            (true, false) => baked += 1,
+            (true, true) => live += 1,
+            _ => {}
         }
     }
-    n
+    (baked, live)
 }
 
 #[cfg(test)]

@@ -60,6 +60,8 @@ struct BevyRun {
     applied: RadbakeApplied,
     /// Per mesh entity: its node's name and its lightmap's rectangle.
     lightmaps: Vec<(String, Option<Rect>)>,
+    /// Per point light: its name and `affects_lightmapped_mesh_diffuse`.
+    point_lights: Vec<(String, bool)>,
 }
 
 #[derive(Resource, Clone)]
@@ -186,6 +188,16 @@ fn run_bevy(dir: &Path, render: bool) -> BevyRun {
             (name, r)
         })
         .collect();
+    let mut q = world.query::<(&PointLight, Option<&Name>)>();
+    let point_lights = q
+        .iter(world)
+        .map(|(l, n)| {
+            (
+                n.map(|n| n.to_string()).unwrap_or_default(),
+                l.affects_lightmapped_mesh_diffuse,
+            )
+        })
+        .collect();
     let pixels = captured.0.lock().unwrap().take().map(|bytes| {
         assert_eq!(bytes.len(), (SIZE * SIZE * 8) as usize, "readback size");
         bytes
@@ -197,6 +209,7 @@ fn run_bevy(dir: &Path, render: bool) -> BevyRun {
             .collect()
     });
     BevyRun {
+        point_lights,
         pixels,
         applied,
         lightmaps,
@@ -528,4 +541,50 @@ fn a_broken_bake_is_a_clear_error() {
             "{name}: {failed:?} does not mention {want:?}"
         );
     }
+}
+
+/// Light modes reach Bevy through the baked `.glb` (the light's node's
+/// `extras.radbake.mode`): a baked point light is switched off for
+/// lightmapped diffuse (the lightmap holds it), an `indirect` one keeps
+/// lighting lightmapped meshes in real time (only its bounces are baked).
+#[test]
+fn indirect_lights_stay_on_for_lightmapped_meshes() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = temp_dir("modes");
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(repo().join("scenes/cornell_box.gltf")).unwrap())
+            .unwrap();
+    doc["extensionsUsed"] = serde_json::json!(["KHR_lights_punctual"]);
+    doc["extensions"] = serde_json::json!({"KHR_lights_punctual": {"lights": [
+        {"name": "bulb_baked", "type": "point", "intensity": 0.02},
+        {"name": "bulb_live", "type": "point", "intensity": 0.02}]}});
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    nodes.push(
+        serde_json::json!({"name": "baked", "translation": [0.2, 0.4, 0.3],
+        "extensions": {"KHR_lights_punctual": {"light": 0}}}),
+    );
+    nodes.push(
+        serde_json::json!({"name": "live", "translation": [0.35, 0.4, 0.3],
+        "extras": {"radbake": {"mode": "indirect"}},
+        "extensions": {"KHR_lights_punctual": {"light": 1}}}),
+    );
+    let n = nodes.len();
+    doc["scenes"][0]["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .extend([n - 2, n - 1].map(|i| serde_json::json!(i)));
+    let gltf = dir.join("modes.gltf");
+    std::fs::write(&gltf, serde_json::to_vec(&doc).unwrap()).unwrap();
+    bake(&gltf, &dir, 20.0, radbake::config::Ktx2Mode::Rgb9e5);
+    let run = run_bevy(&dir, false);
+    assert_eq!((run.applied.lights, run.applied.realtime_lights), (1, 1));
+    let mut lights = run.point_lights.clone();
+    lights.sort();
+    assert_eq!(
+        lights,
+        vec![
+            ("bulb_baked".to_owned(), false),
+            ("bulb_live".to_owned(), true)
+        ]
+    );
 }
