@@ -217,6 +217,89 @@ pub fn punctual_unoccluded(rays: &RayCaster, origin: Vec3, dir: Vec3, dist: f32)
     rays.unoccluded(origin, dir, tmax)
 }
 
+/// Stream purpose id of the samples over lights' extents.
+const PURPOSE_EXTENT: u64 = 40;
+
+/// Shadow rays per texel and light with a size (a sphere or a sun disk),
+/// stratified over the light's extent.
+pub const EXTENT_SAMPLES: u32 = 16;
+
+/// A direction from a point towards `light`'s extent for unit-square
+/// point `u`, uniform in the solid angle the extent subtends: a cone about
+/// the centre's direction `to` of half-angle α/2 (a sun disk of angular
+/// diameter α) or asin(R / d) (a sphere of radius R at distance `dist`
+/// d; Shirley et al. 1996, "Monte Carlo techniques for direct lighting
+/// calculations"). Returns the direction and the distance along it to the
+/// sphere's near surface (∞ for the sun). For small extents, uniform in
+/// solid angle is uniform over the disk the light shows, so the visible
+/// fraction of the samples is the visible fraction of the light.
+pub fn extent_sample(light: &Light, to: Vec3, dist: f32, u: Vec2) -> (Vec3, f32) {
+    let sphere = !matches!(light.kind, LightKind::Directional);
+    let cos_max = if sphere {
+        let s = (light.radius / dist).min(1.0);
+        (1.0 - s * s).max(0.0).sqrt()
+    } else {
+        (0.5 * light.angle).cos()
+    };
+    let cos_t = 1.0 - u.x * (1.0 - cos_max);
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = 2.0 * std::f32::consts::PI * u.y;
+    let dir = to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t), to);
+    let len = if sphere {
+        // The near root of |dist·to − t·dir| = R.
+        let b = dist * cos_t;
+        let c = dist * dist - light.radius * light.radius;
+        (b - (b * b - c).max(0.0).sqrt()).max(0.0)
+    } else {
+        f32::INFINITY
+    };
+    (dir, len)
+}
+
+/// The visible fraction of `light` from the points `from` (point, normal,
+/// weight; the centre's direction and distance from each): one shadow ray
+/// from each for a delta light (weighted); for a light with a size,
+/// [`EXTENT_SAMPLES`] rays over its extent, stratified (strata paired with
+/// the points at random), each weighted by its cosine, so an unshadowed
+/// point sees exactly 1. Returns (fraction, rays).
+pub fn light_visibility(
+    rays: &RayCaster,
+    light: &Light,
+    from: &[(Vec3, Vec3, f32, Vec3, f32)],
+    rng: &mut Stream,
+) -> (f32, u64) {
+    let total: f32 = from.iter().map(|f| f.2).sum();
+    if from.is_empty() || total <= 0.0 {
+        return (0.0, 0);
+    }
+    if !light.has_extent() {
+        let mut visible = 0.0;
+        for &(p, n, w, to, dist) in from {
+            if punctual_unoccluded(rays, offset_ray_origin(p, n), to, dist) {
+                visible += w / total;
+            }
+        }
+        return (visible, from.len() as u64);
+    }
+    let perm = rng.permutation(EXTENT_SAMPLES);
+    let (mut seen, mut all, mut cast) = (0.0f32, 0.0f32, 0u64);
+    for j in 0..EXTENT_SAMPLES {
+        let (p, n, w, to, dist) = from[j as usize % from.len()];
+        let u = stratified(perm[j as usize], EXTENT_SAMPLES, rng.next_vec2());
+        let (dir, len) = extent_sample(light, to, dist, u);
+        let c = n.dot(dir);
+        if c <= 0.0 {
+            continue;
+        }
+        cast += 1;
+        all += w * c;
+        if punctual_unoccluded(rays, offset_ray_origin(p, n), dir, len) {
+            seen += w * c;
+        }
+    }
+    (if all > 0.0 { seen / all } else { 0.0 }, cast)
+}
+
 /// Which materials' emission is sampled as direct light (per
 /// [`EmitterSampling`]: `auto` samples a material that covers at most 2 %
 /// of the surface); the rest enters the radiosity solve.
@@ -333,13 +416,15 @@ pub fn direct_at(
     let mut dir_part: Directional = [Vec3::ZERO; 3];
     let w = 1.0 / punctual_points.len().max(1) as f32;
     for &(p, n) in punctual_points {
-        let origin = offset_ray_origin(p, n);
         for light in &lights.punctual {
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
-                rays += 1;
-                if !punctual_unoccluded(s.rays, origin, dir, dist) {
+                let (visible, cast) =
+                    light_visibility(s.rays, light, &[(p, n, 1.0, dir, dist)], rng);
+                rays += cast;
+                if visible <= 0.0 {
                     continue;
                 }
+                let value = value * visible;
                 if light.mode.is_mixed() {
                     mixed += value * w;
                 } else {
@@ -512,9 +597,12 @@ const PIECE_RAYS: usize = 4;
 /// centroid of a curved texel lies off the surface, in the surface's own
 /// shadow: Sponza's roof read 5 % dark that way; one piece's normal for the
 /// whole texel favours the larger, steeper facets.)
+/// A light with a size ([`Light::has_extent`]) casts [`EXTENT_SAMPLES`]
+/// rays over its extent from those pieces instead ([`light_visibility`]),
+/// drawn from `seed`'s stream for the texel.
 /// Returns the baked lights' irradiance / π (in `light`), the mixed
 /// lights' (in `mixed`), the baked lights' directional part and the rays.
-pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> TexelDirect {
+pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> TexelDirect {
     let g = s.geometry;
     let pieces = s.texels.pieces_of(t);
     let total: f32 = pieces.iter().map(|p| p.area).sum();
@@ -527,6 +615,8 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> TexelDirect {
     let side = crate::burial::Side::of(s, t);
     // (point, normal, value, direction, distance, weight aᵢ·lum(Eᵢ)) per lit piece.
     let mut lit: Vec<(Vec3, Vec3, Vec3, Vec3, f32, f32)> = Vec::with_capacity(pieces.len());
+    // Drawn from only by lights with a size.
+    let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
     for light in &lights.punctual {
         lit.clear();
         let mut unshadowed = Vec3::ZERO;
@@ -553,14 +643,12 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize) -> TexelDirect {
             lit.select_nth_unstable_by(PIECE_RAYS - 1, |a, b| b.5.total_cmp(&a.5));
             lit.truncate(PIECE_RAYS);
         }
-        let weight_sum: f32 = lit.iter().map(|l| l.5).sum();
-        let mut visible = 0.0f32;
-        for &(p, n, _, dir, dist, w) in &lit {
-            out.rays += 1;
-            if punctual_unoccluded(s.rays, offset_ray_origin(p, n), dir, dist) {
-                visible += w / weight_sum;
-            }
-        }
+        let from: Vec<_> = lit
+            .iter()
+            .map(|&(p, n, _, dir, dist, w)| (p, n, w, dir, dist))
+            .collect();
+        let (visible, cast) = light_visibility(s.rays, light, &from, &mut rng);
+        out.rays += cast;
         if visible <= 0.0 {
             continue;
         }
@@ -621,7 +709,7 @@ pub fn texels(
                 // One point: the texel's pieces (see `pieces_direct`);
                 // s × s points: spread over the texel's square.
                 let (centre, pieces) = if supersample <= 1 {
-                    (Vec::new(), pieces_direct(s, lights, t))
+                    (Vec::new(), pieces_direct(s, lights, t, seed))
                 } else {
                     let m = supersample * supersample;
                     let points = (0..m)
@@ -684,6 +772,8 @@ mod tests {
             node_index: 0,
             mode: Default::default(),
             node_mode: None,
+            radius: 0.0,
+            angle: 0.0,
             kind: LightKind::Point,
             intensity: Vec3::splat(10.0),
             position: Vec3::new(0.0, 2.0, 0.0),
@@ -706,6 +796,8 @@ mod tests {
             node_index: 0,
             mode: Default::default(),
             node_mode: None,
+            radius: 0.0,
+            angle: 0.0,
             kind: LightKind::Spot {
                 inner_cone_angle: 0.2,
                 outer_cone_angle: 0.4,

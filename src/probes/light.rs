@@ -21,7 +21,7 @@
 //!   is inside a solid (as Unreal judges distance-field signs).
 
 use super::sh::{self, Sh9};
-use crate::direct::{punctual_incident, punctual_unoccluded, Lights, Mis};
+use crate::direct::{light_visibility, punctual_incident, punctual_unoccluded, Lights, Mis};
 use crate::form_factors::raycast::{Landing, Surfaces};
 use crate::sampling::{Net, Stream};
 use glam::{Quat, Vec3};
@@ -120,9 +120,18 @@ impl ProbeLight<'_> {
         // Mixed lights' direct light is the engine's to draw.
         for light in self.lights.punctual.iter().filter(|l| !l.mode.is_mixed()) {
             if let Some((e, to, dist)) = punctual_incident(light, p) {
-                cast += 1;
-                if punctual_unoccluded(self.s.rays, p, to, dist) {
-                    sh::add(&mut sh, to, e, 1.0);
+                if light.has_extent() {
+                    // A sphere or sun disk: its visible fraction over its
+                    // extent, the delta kept at its centre.
+                    let from = [(p, to, 1.0, to, dist)];
+                    let (visible, rays) = light_visibility(self.s.rays, light, &from, &mut rng);
+                    cast += rays as u32;
+                    sh::add(&mut sh, to, e * visible, 1.0);
+                } else {
+                    cast += 1;
+                    if punctual_unoccluded(self.s.rays, p, to, dist) {
+                        sh::add(&mut sh, to, e, 1.0);
+                    }
                 }
             }
         }

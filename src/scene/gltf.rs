@@ -433,10 +433,29 @@ fn import_nodes(
             light.node_index = node.index();
             light.node_mode = extras.mode;
             light.mode = extras.mode.unwrap_or_default();
+            let directional = light.kind == LightKind::Directional;
+            if let Some(r) = extras.radius {
+                if directional {
+                    scene.warnings.push(format!(
+                        "{location}.extras.radbake.radius: a directional light has no radius (use angle); ignored"
+                    ));
+                } else {
+                    light.radius = r;
+                }
+            }
+            if let Some(a) = extras.angle {
+                if directional {
+                    light.angle = a.to_radians();
+                } else {
+                    scene.warnings.push(format!(
+                        "{location}.extras.radbake.angle: only a directional light has an angle (use radius); ignored"
+                    ));
+                }
+            }
             scene.lights.push(light);
-        } else if extras.mode.is_some() {
+        } else if extras.mode.is_some() || extras.radius.is_some() || extras.angle.is_some() {
             scene.warnings.push(format!(
-                "{location}.extras.radbake.mode: the node has no light; ignored"
+                "{location}.extras.radbake: mode, radius and angle are for a node with a light; this one has none, ignored"
             ));
         }
         if let Some(camera) = node.camera() {
@@ -466,6 +485,10 @@ struct NodeExtras {
     dynamic: bool,
     /// `mode`: the bake mode of the node's light.
     mode: Option<LightMode>,
+    /// `radius`: a point or spot light's sphere radius (metres).
+    radius: Option<f32>,
+    /// `angle`: a directional light's angular diameter (degrees).
+    angle: Option<f32>,
     /// Keys this version does not know (warned about).
     unknown: Vec<String>,
 }
@@ -519,8 +542,30 @@ fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeEx
                     ctx.invalid(format!("{at}.mode"), format!("must be one of {names}"))
                 })?);
             }
+            "radius" => {
+                out.radius = Some(match v.as_f64() {
+                    Some(r) if r.is_finite() && r >= 0.0 => r as f32,
+                    _ => {
+                        return Err(ctx.invalid(
+                            format!("{at}.radius"),
+                            "must be a number of metres ≥ 0",
+                        ))
+                    }
+                });
+            }
+            "angle" => {
+                out.angle = Some(match v.as_f64() {
+                    Some(a) if a.is_finite() && (0.0..90.0).contains(&a) => a as f32,
+                    _ => {
+                        return Err(ctx.invalid(
+                            format!("{at}.angle"),
+                            "must be an angular diameter in degrees, 0 ≤ angle < 90",
+                        ))
+                    }
+                });
+            }
             other => out.unknown.push(format!(
-                "{at}: unknown key `{other}` ignored (known: dynamic, mode, probe_volume)"
+                "{at}: unknown key `{other}` ignored (known: angle, dynamic, mode, probe_volume, radius)"
             )),
         }
     }
@@ -1300,6 +1345,8 @@ fn import_light(
         node_index: 0,
         mode: LightMode::Baked,
         node_mode: None,
+        radius: 0.0,
+        angle: 0.0,
         kind,
         intensity: color * intensity,
         position: world.transform_point3(Vec3::ZERO),

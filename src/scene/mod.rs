@@ -264,6 +264,24 @@ pub struct Light {
     pub direction: Vec3,
     /// Range cut-off (metres), if any.
     pub range: Option<f32>,
+    /// Radius of a point or spot light's sphere (metres; the node's
+    /// `extras.radbake.radius`): soft shadows. 0: a delta light.
+    pub radius: f32,
+    /// Angular diameter of a directional light's disk (radians; the node's
+    /// `extras.radbake.angle`, given in degrees: the real sun's is 0.53°):
+    /// soft shadows. 0: a delta light.
+    pub angle: f32,
+}
+
+impl Light {
+    /// True for a light with a size (a sphere or a sun disk), whose shadows
+    /// are soft.
+    pub fn has_extent(&self) -> bool {
+        match self.kind {
+            LightKind::Directional => self.angle > 0.0,
+            LightKind::Point | LightKind::Spot { .. } => self.radius > 0.0,
+        }
+    }
 }
 
 /// A perspective camera placed in the world.

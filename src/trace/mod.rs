@@ -22,7 +22,7 @@ pub mod bdpt;
 pub mod render;
 pub mod view;
 
-use crate::direct::{punctual_irradiance, punctual_unoccluded, Lights};
+use crate::direct::{extent_sample, punctual_irradiance, punctual_unoccluded, Lights};
 use crate::geometry::Geometry;
 use crate::raycast::RayCaster;
 use crate::sampling::{
@@ -314,7 +314,13 @@ impl<'a> Tracer<'a> {
                 continue;
             }
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
-                if punctual_unoccluded(self.rays, origin, dir, dist) {
+                let (dir, dist) = if light.has_extent() {
+                    // One point of a sphere or sun disk.
+                    extent_sample(light, dir, dist, rng.next_vec2())
+                } else {
+                    (dir, dist)
+                };
+                if n.dot(dir) > 0.0 && punctual_unoccluded(self.rays, origin, dir, dist) {
                     h += value;
                 }
             }
