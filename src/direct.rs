@@ -766,20 +766,13 @@ mod tests {
 
     #[test]
     fn point_light_inverse_square_and_cosine() {
-        let light = Light {
-            name: "p".into(),
-            node: String::new(),
-            node_index: 0,
-            mode: Default::default(),
-            node_mode: None,
-            radius: 0.0,
-            angle: 0.0,
-            kind: LightKind::Point,
-            intensity: Vec3::splat(10.0),
-            position: Vec3::new(0.0, 2.0, 0.0),
-            direction: Vec3::NEG_Y,
-            range: None,
-        };
+        let light = Light::delta(
+            "p",
+            LightKind::Point,
+            Vec3::splat(10.0),
+            Vec3::new(0.0, 2.0, 0.0),
+            Vec3::NEG_Y,
+        );
         let (h, dir, d) = punctual_irradiance(&light, Vec3::new(2.0, 0.0, 0.0), Vec3::Y).unwrap();
         // cos θ = 2/√8, d² = 8: H = 10 · cos θ / (π · 8).
         let want = 10.0 * (2.0 / 8f32.sqrt()) / (std::f32::consts::PI * 8.0);
@@ -790,23 +783,16 @@ mod tests {
 
     #[test]
     fn spot_cone_falloff() {
-        let light = Light {
-            name: "s".into(),
-            node: String::new(),
-            node_index: 0,
-            mode: Default::default(),
-            node_mode: None,
-            radius: 0.0,
-            angle: 0.0,
-            kind: LightKind::Spot {
+        let light = Light::delta(
+            "s",
+            LightKind::Spot {
                 inner_cone_angle: 0.2,
                 outer_cone_angle: 0.4,
             },
-            intensity: Vec3::ONE,
-            position: Vec3::new(0.0, 1.0, 0.0),
-            direction: Vec3::NEG_Y,
-            range: None,
-        };
+            Vec3::ONE,
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::NEG_Y,
+        );
         let inside = punctual_irradiance(&light, Vec3::ZERO, Vec3::Y)
             .unwrap()
             .0

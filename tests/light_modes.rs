@@ -13,7 +13,7 @@
 
 mod common;
 
-use common::{quad, scene_path, temp_dir, GltfBuilder};
+use common::{scene_path, temp_dir};
 use glam::Vec3;
 use radbake::config::{LightMode, LightModes};
 use radbake::measure::{Meter, MeterSettings};
@@ -23,47 +23,11 @@ use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Ground half size, albedo, sky, sun (W/m²), probe height.
-const A: f32 = 10.0;
-const RHO: f32 = 0.5;
-const SKY: f32 = 0.8;
-const SUN: f32 = 3.0;
-const H: f32 = 2.0;
+use common::ground::{A, H, RHO, SKY, SUN};
 
-/// A ground square under a sky and a sun shining along −`to_sun`, whose
-/// node carries `extras` (if any), with one probe at height `H`; without
-/// `sun`, no light at all.
+/// The sunlit ground (see [`common::sunlit_ground`]).
 fn sun_plane(name: &str, to_sun: Vec3, sun: bool, extras: Option<Value>) -> PathBuf {
-    let mut b = GltfBuilder::default();
-    let grey = b.material([RHO; 3], [0.0; 3]);
-    let (p, i) = quad([-A, 0.0, -A], [0.0, 0.0, 2.0 * A], [2.0 * A, 0.0, 0.0]);
-    let m = b.mesh(&p, &i, Some(grey));
-    b.node("ground", m);
-    let mut doc = b.json();
-    let nodes = doc["nodes"].as_array_mut().unwrap();
-    nodes.push(json!({
-        "name": "probe_box", "translation": [0.0, H, 0.0], "scale": [0.1, 0.1, 0.1],
-        "extras": {"radbake": {"probe_volume": {"spacing": 1.0}}}
-    }));
-    if sun {
-        let rot = glam::Quat::from_rotation_arc(Vec3::NEG_Z, -to_sun);
-        let mut node = json!({"name": "sun", "rotation": rot.to_array(),
-            "extensions": {"KHR_lights_punctual": {"light": 0}}});
-        if let Some(e) = extras {
-            node["extras"] = e;
-        }
-        nodes.push(node);
-    }
-    let n = nodes.len();
-    doc["scenes"][0]["nodes"] = json!((0..n).collect::<Vec<_>>());
-    if sun {
-        doc["extensionsUsed"] = json!(["KHR_lights_punctual"]);
-        doc["extensions"] =
-            json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": SUN}]}});
-    }
-    let path = temp_dir(name).join("ground.gltf");
-    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
-    path
+    common::sunlit_ground(name, to_sun, sun, extras)
 }
 
 fn sun_config() -> BakeConfig {
@@ -288,24 +252,7 @@ fn cli_light_mode() {
     let to_sun = Vec3::new(0.3, 1.0, 0.2).normalize();
     let path = sun_plane("modes-cli", to_sun, true, None);
     let out = temp_dir("modes-cli-out");
-    let run = |extra: &[&str], scene: &Path| {
-        Command::new(exe)
-            .args([
-                "bake",
-                "-q",
-                "--force",
-                "--texels-per-meter",
-                "2",
-                "--probes",
-                "off",
-            ])
-            .arg(scene)
-            .arg("--out")
-            .arg(&out)
-            .args(extra)
-            .output()
-            .unwrap()
-    };
+    let run = |extra: &[&str], scene: &Path| cli_bake(scene, &out, extra);
     let ok = run(&["--light-mode", "sun=indirect"], &path);
     assert!(
         ok.status.success(),
@@ -358,26 +305,18 @@ fn cli_light_mode() {
     }
 }
 
-/// Mean linear RGB of the 3 × 3 pixels at the centre of `png` (sRGB).
-fn centre_linear(png: &Path) -> Vec3 {
-    let img = image::open(png).unwrap().to_rgba8();
-    let (w, h) = img.dimensions();
-    let lin = |c: u8| {
-        let c = c as f32 / 255.0;
-        if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        }
-    };
-    let mut sum = Vec3::ZERO;
-    for y in h / 2 - 1..=h / 2 + 1 {
-        for x in w / 2 - 1..=w / 2 + 1 {
-            let p = img.get_pixel(x, y);
-            sum += Vec3::new(lin(p[0]), lin(p[1]), lin(p[2]));
-        }
-    }
-    sum / 9.0
+/// `radbake bake -q --force --texels-per-meter 2 --probes off SCENE --out
+/// OUT EXTRA…`.
+fn cli_bake(scene: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(["bake", "-q", "--force", "--texels-per-meter", "2"])
+        .args(["--probes", "off"])
+        .arg(scene)
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
 }
 
 /// What the preview shows is what an engine would: the `indirect` sun's
@@ -394,30 +333,17 @@ fn preview_draws_indirect_lights_in_real_time() {
     let mut shots = Vec::new();
     for mode in ["baked", "indirect"] {
         let out = dir.join(mode);
-        let bake = Command::new(exe)
-            .args([
-                "bake",
-                "-q",
-                "--force",
-                "--texels-per-meter",
-                "2",
-                "--probes",
-                "off",
-            ])
-            .arg(&scene)
-            .arg("--out")
-            .arg(&out)
-            .arg(format!("--sky={SKY},{SKY},{SKY}"))
-            .args(["--light-mode", &format!("sun={mode}")])
-            .output()
-            .unwrap();
+        let label = mode;
+        let sky = format!("--sky={SKY},{SKY},{SKY}");
+        let mode = format!("sun={mode}");
+        let bake = cli_bake(&scene, &out, &[&sky, "--light-mode", &mode]);
         assert!(
             bake.status.success(),
             "{}",
             String::from_utf8_lossy(&bake.stderr)
         );
         for view in ["lit", "lightmap"] {
-            let png = dir.join(format!("{mode}-{view}.png"));
+            let png = dir.join(format!("{label}-{view}.png"));
             let run = Command::new(exe)
                 .arg("preview")
                 .arg(out.join("ground.baked.glb"))
@@ -434,7 +360,7 @@ fn preview_draws_indirect_lights_in_real_time() {
             }
             assert!(run.status.success(), "preview failed: {stderr}");
             // EV −1: the lightmap view (up to 1.7) stays below 1.
-            shots.push(centre_linear(&png) * 2.0);
+            shots.push(common::centre_linear(&image::open(&png).unwrap().to_rgba8()) * 2.0);
         }
     }
     let [baked_lit, baked_lm, ind_lit, ind_lm] = [shots[0], shots[1], shots[2], shots[3]];

@@ -11,7 +11,7 @@
 
 mod common;
 
-use common::{quad, scene_path, temp_dir, GltfBuilder};
+use common::{centre_linear, quad, scene_path, srgb_to_linear, temp_dir, GltfBuilder};
 use glam::{Vec2, Vec3};
 use radbake::preview::{gpu, model};
 use std::path::{Path, PathBuf};
@@ -527,32 +527,6 @@ fn baked_probe_scene() -> &'static Path {
         radbake::output::write_engine_outputs(&out, "scene", &bake).unwrap();
         out
     })
-}
-
-fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f32 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// Mean linear RGB of the 3 × 3 pixels at the image centre.
-fn centre_linear(img: &image::RgbaImage) -> Vec3 {
-    let (w, h) = img.dimensions();
-    let mut sum = Vec3::ZERO;
-    for y in h / 2 - 1..=h / 2 + 1 {
-        for x in w / 2 - 1..=w / 2 + 1 {
-            let p = img.get_pixel(x, y);
-            sum += Vec3::new(
-                srgb_to_linear(p[0]),
-                srgb_to_linear(p[1]),
-                srgb_to_linear(p[2]),
-            );
-        }
-    }
-    sum / 9.0
 }
 
 /// Renders `glb` from `from` towards `at` at 160×120, no tone map, EV 0;

@@ -87,38 +87,11 @@ fn furnace_volume_reads_two_everywhere() {
     assert_eq!(back.valid, probes.valid);
 }
 
-/// Probe height over the ground square, its half size, albedo, sky, sun.
-const H: f32 = 2.0;
-const A: f32 = 10.0;
-const RHO: f32 = 0.5;
-const SKY: f32 = 0.8;
-const SUN: f32 = 3.0;
+use common::ground::{A, H, RHO, SKY, SUN};
 
-/// A ground square (albedo `RHO`, half size `A`) under sky `SKY` and a
-/// directional sun of `SUN` W/m² shining along −`to_sun`, with one probe
-/// (a `probe_volume` node of resolution 1) at height `H` over its centre.
+/// The sunlit ground with its probe (see [`common::sunlit_ground`]).
 fn sky_scene(to_sun: Vec3) -> std::path::PathBuf {
-    let mut b = GltfBuilder::default();
-    let grey = b.material([RHO; 3], [0.0; 3]);
-    let (p, i) = quad([-A, 0.0, -A], [0.0, 0.0, 2.0 * A], [2.0 * A, 0.0, 0.0]);
-    let m = b.mesh(&p, &i, Some(grey));
-    b.node("ground", m);
-    let mut doc = b.json();
-    doc["extensionsUsed"] = serde_json::json!(["KHR_lights_punctual"]);
-    doc["extensions"] = serde_json::json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": SUN}]}});
-    // A directional light shines along its node's −Z.
-    let rot = glam::Quat::from_rotation_arc(Vec3::NEG_Z, -to_sun);
-    let nodes = doc["nodes"].as_array_mut().unwrap();
-    nodes.push(serde_json::json!({"name": "sun", "rotation": rot.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}));
-    nodes.push(serde_json::json!({
-        "name": "probe_box", "translation": [0.0, H, 0.0], "scale": [0.1, 0.1, 0.1],
-        "extras": {"radbake": {"probe_volume": {"spacing": 1.0}}}
-    }));
-    let all: Vec<usize> = (0..nodes.len()).collect();
-    doc["scenes"][0]["nodes"] = serde_json::json!(all);
-    let path = temp_dir("probes-sky").join("ground.gltf");
-    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
-    path
+    common::sunlit_ground("probes-sky", to_sun, true, None)
 }
 
 /// The closed form: the probe sees the ground square (solid angle Ω,

@@ -1336,24 +1336,15 @@ fn import_light(
             outer_cone_angle,
         },
     };
+    let name = light.name().unwrap_or(node_name);
+    let position = world.transform_point3(Vec3::ZERO);
+    let direction = world
+        .transform_vector3(Vec3::NEG_Z)
+        .normalize_or(Vec3::NEG_Y);
     Ok(Light {
-        name: light
-            .name()
-            .map(str::to_owned)
-            .unwrap_or_else(|| node_name.to_owned()),
         node: node_name.to_owned(),
-        node_index: 0,
-        mode: LightMode::Baked,
-        node_mode: None,
-        radius: 0.0,
-        angle: 0.0,
-        kind,
-        intensity: color * intensity,
-        position: world.transform_point3(Vec3::ZERO),
-        direction: world
-            .transform_vector3(Vec3::NEG_Z)
-            .normalize_or(Vec3::NEG_Y),
         range: light.range(),
+        ..Light::delta(name, kind, color * intensity, position, direction)
     })
 }
 

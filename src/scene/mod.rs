@@ -274,6 +274,30 @@ pub struct Light {
 }
 
 impl Light {
+    /// A delta light (no size) in mode `baked`, of no node.
+    pub fn delta(
+        name: &str,
+        kind: LightKind,
+        intensity: Vec3,
+        position: Vec3,
+        direction: Vec3,
+    ) -> Light {
+        Light {
+            name: name.to_owned(),
+            node: name.to_owned(),
+            node_index: 0,
+            mode: LightMode::Baked,
+            node_mode: None,
+            kind,
+            intensity,
+            position,
+            direction,
+            range: None,
+            radius: 0.0,
+            angle: 0.0,
+        }
+    }
+
     /// True for a light with a size (a sphere or a sun disk), whose shadows
     /// are soft.
     pub fn has_extent(&self) -> bool {

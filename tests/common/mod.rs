@@ -314,3 +314,79 @@ pub fn append_vec2_accessor(doc: &mut Value, data: &[[f32; 2]]) -> usize {
     );
     accessors.len() - 1
 }
+
+/// The sunlit ground of the probe and light-mode tests: half size `A`,
+/// albedo `RHO`, sky `SKY`, sun `SUN` (W/m²), probe height `H`.
+pub mod ground {
+    pub const A: f32 = 10.0;
+    pub const RHO: f32 = 0.5;
+    pub const SKY: f32 = 0.8;
+    pub const SUN: f32 = 3.0;
+    pub const H: f32 = 2.0;
+}
+
+/// A ground square (albedo `ground::RHO`, half size `ground::A`) with one
+/// probe (a `probe_volume` node of resolution 1) at height `ground::H` over
+/// its centre, and with `sun` a directional light of `ground::SUN` W/m²
+/// shining along −`to_sun` whose node carries `extras` (if any); written
+/// to a fresh folder `name`.
+pub fn sunlit_ground(name: &str, to_sun: glam::Vec3, sun: bool, extras: Option<Value>) -> PathBuf {
+    use ground::{A, H, RHO, SUN};
+    let mut b = GltfBuilder::default();
+    let grey = b.material([RHO; 3], [0.0; 3]);
+    let (p, i) = quad([-A, 0.0, -A], [0.0, 0.0, 2.0 * A], [2.0 * A, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("ground", m);
+    let mut doc = b.json();
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    if sun {
+        // A directional light shines along its node's −Z.
+        let rot = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, -to_sun);
+        let mut node = json!({"name": "sun", "rotation": rot.to_array(),
+            "extensions": {"KHR_lights_punctual": {"light": 0}}});
+        if let Some(e) = extras {
+            node["extras"] = e;
+        }
+        nodes.push(node);
+    }
+    nodes.push(json!({
+        "name": "probe_box", "translation": [0.0, H, 0.0], "scale": [0.1, 0.1, 0.1],
+        "extras": {"radbake": {"probe_volume": {"spacing": 1.0}}}
+    }));
+    let n = nodes.len();
+    doc["scenes"][0]["nodes"] = json!((0..n).collect::<Vec<_>>());
+    if sun {
+        doc["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+        doc["extensions"] =
+            json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": SUN}]}});
+    }
+    let path = temp_dir(name).join("ground.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+pub fn srgb_to_linear(c: u8) -> f32 {
+    let c = c as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Mean linear RGB of the 3 × 3 pixels at the image centre.
+pub fn centre_linear(img: &image::RgbaImage) -> glam::Vec3 {
+    let (w, h) = img.dimensions();
+    let mut sum = glam::Vec3::ZERO;
+    for y in h / 2 - 1..=h / 2 + 1 {
+        for x in w / 2 - 1..=w / 2 + 1 {
+            let p = img.get_pixel(x, y);
+            sum += glam::Vec3::new(
+                srgb_to_linear(p[0]),
+                srgb_to_linear(p[1]),
+                srgb_to_linear(p[2]),
+            );
+        }
+    }
+    sum / 9.0
+}

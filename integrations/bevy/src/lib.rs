@@ -297,8 +297,6 @@ fn spawn_baked_scenes(
     mut commands: Commands,
     bakes: Waiting,
     server: Res<AssetServer>,
-    parents: Query<&ChildOf>,
-    extras: Query<&GltfExtras>,
     manifests: Res<Assets<RadbakeManifest>>,
     gltfs: Res<Assets<Gltf>>,
 ) {
