@@ -98,6 +98,61 @@ fn indirect_sun_leaves_exactly_its_direct_light_out() {
     assert!(baked_c[3].x > 0.4 * SUN * to_sun.x, "the baked sun's delta");
 }
 
+/// Without the final gather, and with the path-traced reference, an
+/// `indirect` sun's texels are the baked ones less exactly E s_y / π as
+/// well; photon mapping without the final gather cannot tell the sun's
+/// direct light from the rest, and says so.
+#[test]
+fn indirect_sun_in_every_method() {
+    use radbake::config::Method;
+    let to_sun = Vec3::new(0.4, 1.0, 0.25).normalize();
+    let direct = SUN * to_sun.y / PI;
+    let indirect = Some(json!({"radbake": {"mode": "indirect"}}));
+    let configs = [
+        BakeConfig {
+            final_gather: 0,
+            ..sun_config()
+        },
+        BakeConfig {
+            method: Method::Pathtrace,
+            path_samples: 16,
+            ..sun_config()
+        },
+    ];
+    for (k, config) in configs.iter().enumerate() {
+        let config = BakeConfig {
+            probes: false,
+            ..config.clone()
+        };
+        let baked = load(&sun_plane(&format!("modes-m{k}-b"), to_sun, true, None), &config);
+        let ind = load(
+            &sun_plane(&format!("modes-m{k}-i"), to_sun, true, indirect.clone()),
+            &config,
+        );
+        let (b, i) = (
+            radbake::bake(&baked, &config, &Silent).unwrap(),
+            radbake::bake(&ind, &config, &Silent).unwrap(),
+        );
+        let (b, i) = (&b.transport, &i.transport);
+        let worst = (0..b.values.len())
+            .filter(|&t| b.valid[t])
+            .map(|t| (grey(b.values[t]) - grey(i.values[t]) - direct).abs())
+            .fold(0.0f32, f32::max);
+        eprintln!("{:?}, final_gather {}: worst {worst}", config.method, config.final_gather);
+        assert!(worst < 1e-4 * direct, "{:?}: worst {worst}", config.method);
+    }
+    let photon = BakeConfig {
+        method: Method::Photon,
+        final_gather: 0,
+        photons: 1000,
+        probes: false,
+        ..sun_config()
+    };
+    let ind = load(&sun_plane("modes-photon", to_sun, true, indirect), &photon);
+    let err = radbake::bake(&ind, &photon, &Silent).err().unwrap().to_string();
+    assert!(err.contains("final_gather"), "{err}");
+}
+
 /// A `realtime` light (here through the config's per-type default) bakes
 /// bit for bit as the same scene without it.
 #[test]
