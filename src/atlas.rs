@@ -117,7 +117,9 @@ pub fn unwrap(scene: &Scene, config: &BakeConfig) -> Result<Atlas> {
     Ok(to_atlas(scene, &mesh_instances, out, warnings))
 }
 
-/// Each mesh's instances and their uniform scales.
+/// Each mesh's instances and their scales in the atlas: the transform's
+/// uniform scale times the node's `texel_scale` (its charts are that much
+/// larger in texels; the texel budget counts them so).
 fn instances_by_mesh(scene: &Scene) -> (Vec<Vec<usize>>, Vec<Vec<f32>>) {
     let mut mesh_instances: Vec<Vec<usize>> = vec![Vec::new(); scene.meshes.len()];
     for (i, inst) in scene.instances.iter().enumerate() {
@@ -127,7 +129,7 @@ fn instances_by_mesh(scene: &Scene) -> (Vec<Vec<usize>>, Vec<Vec<f32>>) {
         .iter()
         .map(|list| {
             list.iter()
-                .map(|&i| scene.instances[i].uniform_scale())
+                .map(|&i| scene.instances[i].uniform_scale() * scene.instances[i].texel_scale)
                 .collect()
         })
         .collect();
@@ -348,6 +350,7 @@ mod tests {
             instances: (0..3)
                 .map(|i| Instance {
                     node: format!("n{i}"),
+                    texel_scale: 1.0,
                     node_index: i,
                     mesh: 0,
                     world_from_local: Mat4::from_translation(Vec3::X * 3.0 * i as f32),
@@ -394,6 +397,7 @@ mod tests {
             instances: (0..count)
                 .map(|i| Instance {
                     node: format!("n{i}"),
+                    texel_scale: 1.0,
                     node_index: i as usize,
                     mesh: 0,
                     world_from_local: Mat4::from_scale_rotation_translation(

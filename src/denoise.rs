@@ -18,8 +18,8 @@ use std::collections::HashMap;
 const KERNEL: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
 
 /// Filters `values` (one per texel) in place; `variance` is each value's
-/// noise variance (luminance); `texel_size` is a texel's world size
-/// (metres), the scale of the position guide.
+/// noise variance (luminance); `texel_size[instance]` is a texel's world
+/// size on that instance (metres), the scale of the position guide.
 ///
 /// Only texels of one region mix (`region(t)`, a chart cut by walls, see
 /// [`crate::burial::Burial::region`]).
@@ -29,14 +29,20 @@ pub fn atrous(
     values: &mut [Vec3],
     valid: &[bool],
     variance: &[f32],
-    texel_size: f32,
+    texel_size: &[f32],
 ) {
     let before = chart_sums(texels, values);
     let mut variance = variance.to_vec();
     for pass in 0..3 {
         let step = 1i64 << pass;
-        let sigma_p = texel_size * step as f32;
-        let inv_2sp2 = 1.0 / (2.0 * sigma_p * sigma_p);
+        // 1 / 2σ_p² per instance, σ_p = the texel size × the step.
+        let inv_2sp2: Vec<f32> = texel_size
+            .iter()
+            .map(|size| {
+                let sigma_p = size * step as f32;
+                1.0 / (2.0 * sigma_p * sigma_p)
+            })
+            .collect();
         let current = values.to_vec();
         let next: Vec<Vec3> = (0..texels.len())
             .into_par_iter()
@@ -64,7 +70,9 @@ pub fn atrous(
                             continue;
                         }
                         let wn = n.dot(texels.n_ws[u]).max(0.0).powi(32);
-                        let wp = (-(texels.p_ws[u] - p).length_squared() * inv_2sp2).exp();
+                        let wp = (-(texels.p_ws[u] - p).length_squared()
+                            * inv_2sp2[texels.instance[t] as usize])
+                            .exp();
                         // Symmetric in the pair's noise, so a quiet texel still
                         // takes in a noisy neighbour's rare bright samples
                         // (otherwise filtering would lose their energy).

@@ -71,14 +71,15 @@ impl Patches {
 }
 
 /// Groups `texels` into `k × k` blocks per chart. A block covering less
-/// than half a full block (`full_texel_area` is a whole texel's world area)
+/// than half a full block (`full_texel_area[instance]` is a whole texel's
+/// world area on that instance)
 /// joins its largest full neighbour in the same chart, so no patch is a
 /// sliver: slivers make noisy shooting targets and put a hemicube's eye on
 /// the very edge of a face.
 ///
 /// Blocks are per region ([`Burial::region`]):
 /// a block that a wall cuts in two is two patches.
-pub fn build(texels: &Texels, burial: &Burial, k: u32, full_texel_area: f32) -> Patches {
+pub fn build(texels: &Texels, burial: &Burial, k: u32, full_texel_area: &[f32]) -> Patches {
     let k = k.max(1);
     let region = |t: usize| burial.region(texels, t);
     let block_of = |t: usize| {
@@ -96,13 +97,14 @@ pub fn build(texels: &Texels, burial: &Burial, k: u32, full_texel_area: f32) -> 
         });
         *a += texels.area[t];
     }
-    let threshold = 0.5 * (k * k) as f32 * full_texel_area;
+    let threshold = |inst: u32| 0.5 * (k * k) as f32 * full_texel_area[inst as usize];
     let mut target: HashMap<BlockKey, BlockKey> = HashMap::new();
     for &key in &order {
+        let (inst, chart, bx, by) = key;
+        let threshold = threshold(inst);
         if block_area[&key] >= threshold {
             continue;
         }
-        let (inst, chart, bx, by) = key;
         let mut best: Option<(f32, BlockKey)> = None;
         for (dx, dy) in [
             (-1i64, 0i64),

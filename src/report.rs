@@ -142,6 +142,8 @@ pub struct InstanceReport {
     /// Area-weighted mean of the lightmap as written (invalid texels filled
     /// from their neighbours, seams stitched): what a renderer shows.
     pub lightmap_mean: [f32; 3],
+    /// The node's `texel_scale` (its density over the bake's).
+    pub texel_scale: f32,
     /// Atlas page.
     pub page: u32,
     /// Rectangle in the page, (min.x, min.y, max.x, max.y) in [0, 1] (Bevy's `uv_rect`).

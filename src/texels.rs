@@ -611,6 +611,7 @@ mod tests {
             instances: (0..2)
                 .map(|i| Instance {
                     node: format!("n{i}"),
+                    texel_scale: 1.0,
                     node_index: i,
                     mesh: 0,
                     world_from_local: Mat4::from_translation(Vec3::Z * 5.0 * i as f32),

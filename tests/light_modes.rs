@@ -124,7 +124,10 @@ fn indirect_sun_in_every_method() {
             probes: false,
             ..config.clone()
         };
-        let baked = load(&sun_plane(&format!("modes-m{k}-b"), to_sun, true, None), &config);
+        let baked = load(
+            &sun_plane(&format!("modes-m{k}-b"), to_sun, true, None),
+            &config,
+        );
         let ind = load(
             &sun_plane(&format!("modes-m{k}-i"), to_sun, true, indirect.clone()),
             &config,
@@ -138,7 +141,10 @@ fn indirect_sun_in_every_method() {
             .filter(|&t| b.valid[t])
             .map(|t| (grey(b.values[t]) - grey(i.values[t]) - direct).abs())
             .fold(0.0f32, f32::max);
-        eprintln!("{:?}, final_gather {}: worst {worst}", config.method, config.final_gather);
+        eprintln!(
+            "{:?}, final_gather {}: worst {worst}",
+            config.method, config.final_gather
+        );
         assert!(worst < 1e-4 * direct, "{:?}: worst {worst}", config.method);
     }
     let photon = BakeConfig {
@@ -149,7 +155,10 @@ fn indirect_sun_in_every_method() {
         ..sun_config()
     };
     let ind = load(&sun_plane("modes-photon", to_sun, true, indirect), &photon);
-    let err = radbake::bake(&ind, &photon, &Silent).err().unwrap().to_string();
+    let err = radbake::bake(&ind, &photon, &Silent)
+        .err()
+        .unwrap()
+        .to_string();
     assert!(err.contains("final_gather"), "{err}");
 }
 

@@ -112,8 +112,12 @@ pub fn bake<'s>(
     let burial = burial_planes(scene, &geometry, &texels, &rays, config, &mut log);
 
     log.begin("patches", 0);
-    let texel_area = 1.0 / (atlas.texels_per_meter * atlas.texels_per_meter);
-    let patches = patches::build(&texels, &burial, config.patch_texels, texel_area);
+    let texel_area: Vec<f32> = scene
+        .instances
+        .iter()
+        .map(|i| (atlas.texels_per_meter * i.texel_scale).powi(-2))
+        .collect();
+    let patches = patches::build(&texels, &burial, config.patch_texels, &texel_area);
     log.end("patches");
 
     let surfaces = Surfaces {

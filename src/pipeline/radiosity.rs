@@ -459,7 +459,12 @@ fn gathered_light(
     let mut indirect = g.indirect;
     if config.denoise {
         log.begin("denoise", 0);
-        let texel_size = 1.0 / atlas.texels_per_meter;
+        let texel_size: Vec<f32> = s
+            .scene
+            .instances
+            .iter()
+            .map(|i| 1.0 / (atlas.texels_per_meter * i.texel_scale))
+            .collect();
         let region = |t: usize| s.burial.region(s.texels, t);
         denoise::atrous(
             s.texels,
@@ -467,7 +472,7 @@ fn gathered_light(
             &mut indirect,
             &g.valid,
             &g.variance,
-            texel_size,
+            &texel_size,
         );
         log.end("denoise");
     }

@@ -60,6 +60,7 @@ impl Bake<'_> {
                     texels: sums.texels,
                     mean: mean(&sums.arrived),
                     lightmap_mean: mean(&sums.lightmap),
+                    texel_scale: inst.texel_scale,
                     page: r.page,
                     uv_rect: [r.min[0], r.min[1], r.max[0], r.max[1]],
                 }

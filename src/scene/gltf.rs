@@ -407,6 +407,11 @@ fn import_nodes(
                     }
                 }
             };
+            if slot.is_none() && extras.texel_scale.is_some() {
+                scene.warnings.push(format!(
+                    "{location}.extras.radbake.texel_scale: the node has no mesh to bake; ignored"
+                ));
+            }
             if let Some(mesh_index) = slot {
                 if world.determinant().abs() <= f32::MIN_POSITIVE {
                     scene.warnings.push(format!(
@@ -418,6 +423,7 @@ fn import_nodes(
                         node_index: node.index(),
                         mesh: mesh_index,
                         world_from_local: world,
+                        texel_scale: extras.texel_scale.unwrap_or(1.0),
                     };
                     if extras.dynamic {
                         scene.dynamic.push(instance);
@@ -475,6 +481,10 @@ fn import_nodes(
     Ok(())
 }
 
+/// The largest `texel_scale` a node may ask for (its texels then cover
+/// 1/4096 of the area the bake's do).
+const MAX_TEXEL_SCALE: f64 = 64.0;
+
 /// What a node's `extras.radbake` says.
 #[derive(Default)]
 struct NodeExtras {
@@ -489,6 +499,8 @@ struct NodeExtras {
     radius: Option<f32>,
     /// `angle`: a directional light's angular diameter (degrees).
     angle: Option<f32>,
+    /// `texel_scale`: the node's lightmap density over the bake's.
+    texel_scale: Option<f32>,
     /// Keys this version does not know (warned about).
     unknown: Vec<String>,
 }
@@ -564,8 +576,19 @@ fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeEx
                     }
                 });
             }
+            "texel_scale" => {
+                out.texel_scale = Some(match v.as_f64() {
+                    Some(x) if x.is_finite() && x > 0.0 && x <= MAX_TEXEL_SCALE => x as f32,
+                    _ => {
+                        return Err(ctx.invalid(
+                            format!("{at}.texel_scale"),
+                            format!("must be a number > 0 and ≤ {MAX_TEXEL_SCALE}"),
+                        ))
+                    }
+                });
+            }
             other => out.unknown.push(format!(
-                "{at}: unknown key `{other}` ignored (known: angle, dynamic, mode, probe_volume, radius)"
+                "{at}: unknown key `{other}` ignored (known: angle, dynamic, mode, probe_volume, radius, texel_scale)"
             )),
         }
     }

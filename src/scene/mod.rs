@@ -55,6 +55,9 @@ pub struct Instance {
     pub mesh: u32,
     /// Local to world transform (the product of the node path's transforms).
     pub world_from_local: Mat4,
+    /// The node's `extras.radbake.texel_scale`: its lightmap density is the
+    /// bake's times this (1: the bake's).
+    pub texel_scale: f32,
 }
 
 impl Instance {

@@ -1,0 +1,97 @@
+//! Per-object lightmap controls under a node's `extras.radbake` (issue
+//! #23): `texel_scale` multiplies the node's lightmap density, inside the
+//! bake's texel budget.
+
+mod common;
+
+use common::{quad, temp_dir, GltfBuilder};
+use radbake::{BakeConfig, Silent};
+use serde_json::{json, Value};
+use std::path::PathBuf;
+
+/// Two instances of one 1 × 1 m quad side by side under a sky, the first
+/// with `extras` on its node.
+fn two_quads(name: &str, extras: Value) -> PathBuf {
+    let mut b = GltfBuilder::default();
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = quad([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("fine", m);
+    b.node("plain", m);
+    let mut doc = b.json();
+    doc["nodes"][0]["extras"] = extras;
+    doc["nodes"][1]["translation"] = json!([2.0, 0.0, 0.0]);
+    let path = temp_dir(name).join("quads.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+/// Texels of each instance, and the instances' report lines.
+fn bake(path: &PathBuf, config: &BakeConfig) -> Vec<radbake::report::InstanceReport> {
+    let scene = radbake::scene::load(path, &Default::default()).unwrap();
+    radbake::bake(&scene, config, &Silent)
+        .unwrap()
+        .instance_reports()
+}
+
+/// `texel_scale: 2` gives its instance 4 × the texels of the same mesh's
+/// other instance (within the packing's rounding: the texels a quad's
+/// edges touch), also when the budget lowers the bake's density; both
+/// read the sky's exact irradiance; the report lists the scale.
+#[test]
+fn texel_scale_multiplies_the_density() {
+    let path = two_quads("objects-scale", json!({"radbake": {"texel_scale": 2.0}}));
+    let sky = 0.8;
+    for (max_texels, density) in [(1 << 20, 20.0), (2000, 40.0)] {
+        let config = BakeConfig {
+            texels_per_meter: density,
+            max_texels,
+            sky: [sky; 3],
+            probes: false,
+            ..BakeConfig::default()
+        };
+        let r = bake(&path, &config);
+        let (fine, plain) = (&r[0], &r[1]);
+        assert_eq!((fine.node.as_str(), plain.node.as_str()), ("fine", "plain"));
+        assert_eq!((fine.texel_scale, plain.texel_scale), (2.0, 1.0));
+        let ratio = fine.texels as f64 / plain.texels as f64;
+        eprintln!(
+            "max_texels {max_texels}: {} vs {} texels, ratio {ratio:.3}",
+            fine.texels, plain.texels
+        );
+        assert!((3.5..=4.5).contains(&ratio), "ratio {ratio}");
+        if max_texels < 1 << 20 {
+            // The budget held: both together within it.
+            assert!(fine.texels + plain.texels <= max_texels);
+        }
+        for inst in [fine, plain] {
+            for c in inst.mean {
+                assert!((c - sky).abs() < 1e-4, "{}: {c}", inst.node);
+            }
+        }
+    }
+}
+
+/// A `texel_scale` that is not a number in (0, 64] is a one-line error
+/// naming the node's key and the file.
+#[test]
+fn bad_texel_scale_is_a_clear_error() {
+    for (k, bad) in [json!(0.0), json!(-1.0), json!(100.0), json!("big")]
+        .into_iter()
+        .enumerate()
+    {
+        let path = two_quads(
+            &format!("objects-bad{k}"),
+            json!({"radbake": {"texel_scale": bad}}),
+        );
+        let err = radbake::scene::load(&path, &Default::default())
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.contains("nodes[0].extras.radbake.texel_scale") && err.contains("quads.gltf"),
+            "{err}"
+        );
+        assert_eq!(err.lines().count(), 1);
+    }
+}
