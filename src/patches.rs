@@ -216,7 +216,7 @@ mod tests {
             t.albedo.push(Vec3::splat(0.5));
             t.emission.push(Vec3::ZERO);
         }
-        let p = build(&t, &Burial::open(), 2, 0.25);
+        let p = build(&t, &Burial::open(), 2, &[0.25]);
         // (0,0),(1,0) chart 0 | (2,0),(3,1) chart 0 | (1,1) chart 1
         assert_eq!(p.len(), 3);
         assert_eq!(p.texels_of(0), &[0, 1]);

@@ -7,7 +7,7 @@ mod common;
 use common::{quad, temp_dir, GltfBuilder};
 use radbake::{BakeConfig, Silent};
 use serde_json::{json, Value};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Two instances of one 1 × 1 m quad side by side under a sky, the first
 /// with `extras` on its node.
@@ -26,8 +26,8 @@ fn two_quads(name: &str, extras: Value) -> PathBuf {
     path
 }
 
-/// Texels of each instance, and the instances' report lines.
-fn bake(path: &PathBuf, config: &BakeConfig) -> Vec<radbake::report::InstanceReport> {
+/// The instances' report lines of a bake of `path`.
+fn bake(path: &Path, config: &BakeConfig) -> Vec<radbake::report::InstanceReport> {
     let scene = radbake::scene::load(path, &Default::default()).unwrap();
     radbake::bake(&scene, config, &Silent)
         .unwrap()
