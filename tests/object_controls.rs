@@ -95,3 +95,36 @@ fn bad_texel_scale_is_a_clear_error() {
         assert_eq!(err.lines().count(), 1);
     }
 }
+
+/// A mesh's `extras.radbake.texel_scale` is the density of every node that
+/// uses the mesh and sets none of its own; a node's own wins; an unknown
+/// key under a mesh's `radbake` is a named warning.
+#[test]
+fn mesh_texel_scale_and_node_override() {
+    let path = two_quads("objects-mesh", json!({"radbake": {"texel_scale": 1.0}}));
+    let mut doc: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    doc["meshes"][0]["extras"] = json!({"radbake": {"texel_scale": 2.0, "shiny": true}});
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let scales: Vec<f32> = scene.instances.iter().map(|i| i.texel_scale).collect();
+    assert_eq!(
+        scales,
+        vec![1.0, 2.0],
+        "node `fine` sets 1, `plain` takes the mesh's 2"
+    );
+    assert!(
+        scene
+            .warnings
+            .iter()
+            .any(|w| w.contains("meshes[0].extras.radbake") && w.contains("shiny")),
+        "{:?}",
+        scene.warnings
+    );
+    let config = BakeConfig {
+        texels_per_meter: 20.0,
+        probes: false,
+        ..BakeConfig::default()
+    };
+    let r = bake(&path, &config);
+    assert_eq!((r[0].texels * 4, r[1].texel_scale), (r[1].texels, 2.0));
+}

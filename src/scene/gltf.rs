@@ -423,7 +423,11 @@ fn import_nodes(
                         node_index: node.index(),
                         mesh: mesh_index,
                         world_from_local: world,
-                        texel_scale: extras.texel_scale.unwrap_or(1.0),
+                        // The node's, else its mesh's, else the bake's.
+                        texel_scale: extras
+                            .texel_scale
+                            .or(scene.meshes[mesh_index as usize].texel_scale)
+                            .unwrap_or(1.0),
                     };
                     if extras.dynamic {
                         scene.dynamic.push(instance);
@@ -484,6 +488,46 @@ fn import_nodes(
 /// The largest `texel_scale` a node may ask for (its texels then cover
 /// 1/4096 of the area the bake's do).
 const MAX_TEXEL_SCALE: f64 = 64.0;
+
+/// `texel_scale` under `at` (a node's or a mesh's `extras.radbake`).
+fn texel_scale(ctx: &Ctx, at: &str, v: &serde_json::Value) -> Result<f32> {
+    match v.as_f64() {
+        Some(x) if x.is_finite() && x > 0.0 && x <= MAX_TEXEL_SCALE => Ok(x as f32),
+        _ => Err(ctx.invalid(
+            format!("{at}.texel_scale"),
+            format!("must be a number > 0 and ≤ {MAX_TEXEL_SCALE}"),
+        )),
+    }
+}
+
+/// A mesh's `extras.radbake`: `{"texel_scale": s}`, the density of every
+/// node that uses the mesh and sets none of its own; other keys warned
+/// about.
+fn mesh_extras(ctx: &Ctx, mesh: &gltf::Mesh, warnings: &mut Vec<String>) -> Result<Option<f32>> {
+    let location = format!("meshes[{}].extras", mesh.index());
+    let Some(raw) = mesh.extras() else {
+        return Ok(None);
+    };
+    let value: serde_json::Value =
+        serde_json::from_str(raw.get()).map_err(|e| ctx.invalid(&location, e.to_string()))?;
+    let Some(rb) = value.get("radbake") else {
+        return Ok(None);
+    };
+    let at = format!("{location}.radbake");
+    let obj = rb
+        .as_object()
+        .ok_or_else(|| ctx.invalid(&at, "must be an object"))?;
+    let mut scale = None;
+    for (key, v) in obj {
+        match key.as_str() {
+            "texel_scale" => scale = Some(texel_scale(ctx, &at, v)?),
+            other => warnings.push(format!(
+                "{at}: unknown key `{other}` ignored (known on a mesh: texel_scale)"
+            )),
+        }
+    }
+    Ok(scale)
+}
 
 /// What a node's `extras.radbake` says.
 #[derive(Default)]
@@ -576,17 +620,7 @@ fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeEx
                     }
                 });
             }
-            "texel_scale" => {
-                out.texel_scale = Some(match v.as_f64() {
-                    Some(x) if x.is_finite() && x > 0.0 && x <= MAX_TEXEL_SCALE => x as f32,
-                    _ => {
-                        return Err(ctx.invalid(
-                            format!("{at}.texel_scale"),
-                            format!("must be a number > 0 and ≤ {MAX_TEXEL_SCALE}"),
-                        ))
-                    }
-                });
-            }
+            "texel_scale" => out.texel_scale = Some(texel_scale(ctx, &at, v)?),
             other => out.unknown.push(format!(
                 "{at}: unknown key `{other}` ignored (known: angle, dynamic, mode, probe_volume, radius, texel_scale)"
             )),
@@ -840,6 +874,7 @@ fn import_mesh(
             .map(str::to_owned)
             .unwrap_or_else(|| format!("mesh{}", mesh.index())),
         gltf_index: mesh.index(),
+        texel_scale: mesh_extras(ctx, mesh, warnings)?,
         ..Default::default()
     };
     let mut uv1: Vec<Vec2> = Vec::new();

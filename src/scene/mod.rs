@@ -20,6 +20,8 @@ pub struct Mesh {
     pub name: String,
     /// Index in the glTF `meshes` array.
     pub gltf_index: usize,
+    /// The mesh's `extras.radbake.texel_scale`, for nodes that set none.
+    pub texel_scale: Option<f32>,
     /// Vertex positions (local space).
     pub positions: Vec<Vec3>,
     /// Vertex normals (local space, unit length).
