@@ -351,6 +351,7 @@ mod tests {
                 .map(|i| Instance {
                     node: format!("n{i}"),
                     texel_scale: 1.0,
+                    cast_shadows: true,
                     node_index: i,
                     mesh: 0,
                     world_from_local: Mat4::from_translation(Vec3::X * 3.0 * i as f32),
@@ -398,6 +399,7 @@ mod tests {
                 .map(|i| Instance {
                     node: format!("n{i}"),
                     texel_scale: 1.0,
+                    cast_shadows: true,
                     node_index: i as usize,
                     mesh: 0,
                     world_from_local: Mat4::from_scale_rotation_translation(

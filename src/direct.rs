@@ -60,9 +60,17 @@ impl Lights {
             ..Default::default()
         };
         let mut total = 0.0f32;
+        // A node that casts no shadows is not in the ray caster: no ray can
+        // meet its emitters, so they are not lights either.
+        let seen = |t: usize| {
+            scene
+                .instances
+                .get(geometry.instance[t] as usize)
+                .is_none_or(|i| i.cast_shadows)
+        };
         for t in 0..geometry.len() {
             let m = &scene.materials[geometry.material[t] as usize];
-            if m.is_emissive() && sampled[geometry.material[t] as usize] {
+            if m.is_emissive() && sampled[geometry.material[t] as usize] && seen(t) {
                 total += geometry.area[t] * m.emission.element_sum();
                 l.emitters.push(t as u32);
                 l.cdf.push(total);

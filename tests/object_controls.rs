@@ -128,3 +128,98 @@ fn mesh_texel_scale_and_node_override() {
     let r = bake(&path, &config);
     assert_eq!((r[0].texels * 4, r[1].texel_scale), (r[1].texels, 2.0));
 }
+
+/// A black ground under a sun straight down, and a black plate 1 m up over
+/// its x < 0 half, the plate's node with `extras`.
+fn shaded_ground(name: &str, extras: Value) -> PathBuf {
+    let mut b = GltfBuilder::default();
+    let black = b.material([0.0; 3], [0.0; 3]);
+    let (p, i) = quad([-2.0, 0.0, -2.0], [0.0, 0.0, 4.0], [4.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(black));
+    b.node("ground", m);
+    let (p, i) = quad([-3.0, 1.0, -3.0], [0.0, 0.0, 6.0], [3.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(black));
+    b.node("plate", m);
+    let mut doc = b.json();
+    doc["nodes"][1]["extras"] = extras;
+    common::add_vertical_sun(&mut doc, 2.0);
+    let path = temp_dir(name).join("shade.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+/// `cast_shadows: false`: the plate no longer shades the ground (every
+/// ground texel reads the sun's exact E/π, on the CPU and through
+/// `--device gpu` alike, and so does the meter), while the plate's own
+/// texels are still lit; with the default the ground under it is dark.
+#[test]
+fn cast_shadows_false_leaves_a_node_out_of_the_rays() {
+    let e = 2.0 / std::f32::consts::PI;
+    let config = BakeConfig {
+        texels_per_meter: 8.0,
+        probes: false,
+        ..BakeConfig::default()
+    };
+    let shaded = bake(&shaded_ground("objects-shade", json!({})), &config);
+    let ground = shaded[0].mean[0];
+    assert!(
+        ground < 0.6 * e,
+        "the plate shades half the ground: {ground}"
+    );
+
+    let path = shaded_ground(
+        "objects-noshade",
+        json!({"radbake": {"cast_shadows": false}}),
+    );
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    assert!(!scene.instances[1].cast_shadows);
+    for device in [radbake::config::Device::Cpu, radbake::config::Device::Gpu] {
+        let config = BakeConfig {
+            device,
+            ..config.clone()
+        };
+        let bake = radbake::bake(&scene, &config, &Silent).unwrap();
+        eprintln!("{device:?}: {:?}", bake.warnings);
+        let ground: Vec<f32> = (0..bake.texels.len())
+            .filter(|&t| bake.texels.instance[t] == 0 && bake.transport.valid[t])
+            .map(|t| bake.transport.values[t].x)
+            .collect();
+        assert!(!ground.is_empty());
+        for v in &ground {
+            assert!(
+                (v - e).abs() < 1e-4 * e,
+                "{device:?}: ground texel {v}, sun {e}"
+            );
+        }
+        let plate = &bake.instance_reports()[1];
+        assert!(
+            (plate.mean[0] - e).abs() < 1e-3 * e,
+            "plate {}",
+            plate.mean[0]
+        );
+    }
+    let settings = radbake::measure::MeterSettings {
+        samples: 20_000,
+        normal: Default::default(),
+        sky: glam::Vec3::ZERO,
+        seed: 3,
+    };
+    let reading = &radbake::measure::Meter::new(&scene)
+        .measure(&["ground".to_owned()], &settings)
+        .unwrap()[0];
+    assert!((reading.mean[0] as f32 - e).abs() < 1e-4 * e, "{reading:?}");
+
+    // Bad values, and a scene where nothing would be left to meet.
+    let bad = shaded_ground(
+        "objects-noshade-bad",
+        json!({"radbake": {"cast_shadows": "no"}}),
+    );
+    let err = radbake::scene::load(&bad, &Default::default())
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains("nodes[1].extras.radbake.cast_shadows"),
+        "{err}"
+    );
+}

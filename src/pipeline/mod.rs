@@ -251,6 +251,19 @@ fn probe_warnings(p: &Probes) -> Vec<String> {
 /// nothing lights.
 fn input_warnings(scene: &Scene) -> Vec<String> {
     let mut warnings = scene.warnings.clone();
+    for inst in scene.instances.iter().filter(|i| !i.cast_shadows) {
+        let mesh = &scene.meshes[inst.mesh as usize];
+        let emissive = mesh
+            .triangle_material
+            .iter()
+            .any(|&m| scene.materials[m as usize].is_emissive());
+        if emissive {
+            warnings.push(format!(
+                "node `{}`: cast_shadows = false and emissive: no ray can meet it, so its emission is not baked",
+                inst.node
+            ));
+        }
+    }
     if !scene.has_emitters() {
         warnings
             .push("the scene has no emissive surface and no light: the lightmaps are black".into());

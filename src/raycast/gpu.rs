@@ -89,12 +89,21 @@ impl GpuRayCaster {
     /// # Errors
     /// No adapter, or a BVH deeper than the shader's stack.
     pub fn new(geometry: &Geometry) -> Result<GpuRayCaster> {
-        if geometry.is_empty() {
+        Self::with_casters(geometry, None)
+    }
+
+    /// [`GpuRayCaster::new`] over the triangles `casters` only (all with
+    /// `None`; see [`super::shadow_casters`]).
+    ///
+    /// # Errors
+    /// As [`GpuRayCaster::new`].
+    pub fn with_casters(geometry: &Geometry, casters: Option<&[u32]>) -> Result<GpuRayCaster> {
+        if geometry.is_empty() || casters.is_some_and(|c| c.is_empty()) {
             bail!("no triangles");
         }
         let (adapter, device, queue) = crate::adapter::offscreen_device()?;
         let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(
-            &super::obvhs_triangles(geometry),
+            &super::obvhs_triangles(geometry, casters),
             BvhBuildParams::medium_build(),
             &mut Duration::default(),
         );
@@ -122,7 +131,14 @@ impl GpuRayCaster {
                 first_index: n.first_index,
             })
             .collect();
-        let ids = bvh.primitive_indices.clone();
+        let ids: Vec<u32> = match casters {
+            Some(c) => bvh
+                .primitive_indices
+                .iter()
+                .map(|&i| c[i as usize])
+                .collect(),
+            None => bvh.primitive_indices.clone(),
+        };
         let gpu_tris: Vec<GpuTri> = ids
             .iter()
             .map(|&g| {
@@ -468,7 +484,7 @@ impl<'a> GpuBatches<'a> {
     /// # Errors
     /// As [`GpuRayCaster::new`].
     pub fn new(scene: &Scene, geometry: &Geometry, cpu: &'a RayCaster) -> Result<Self> {
-        let gpu = GpuRayCaster::new(geometry)?;
+        let gpu = GpuRayCaster::with_casters(geometry, cpu.casters())?;
         let masked = geometry
             .material
             .iter()

@@ -81,16 +81,39 @@ impl Cutouts {
 
 /// `geometry`'s world-space triangles as obvhs builds its BVHs from them
 /// (the CPU's BVH4 here, the GPU's BVH2 in `gpu.rs`).
-pub(crate) fn obvhs_triangles(geometry: &Geometry) -> Vec<Triangle> {
-    geometry
-        .p_ws
-        .iter()
-        .map(|p| Triangle {
-            v0: p[0].into(),
-            v1: p[1].into(),
-            v2: p[2].into(),
-        })
-        .collect()
+pub(crate) fn obvhs_triangles(geometry: &Geometry, casters: Option<&[u32]>) -> Vec<Triangle> {
+    let tri = |p: &[Vec3; 3]| Triangle {
+        v0: p[0].into(),
+        v1: p[1].into(),
+        v2: p[2].into(),
+    };
+    match casters {
+        Some(ids) => ids
+            .iter()
+            .map(|&g| tri(&geometry.p_ws[g as usize]))
+            .collect(),
+        None => geometry.p_ws.iter().map(tri).collect(),
+    }
+}
+
+/// The triangles rays can meet: those of instances that cast shadows
+/// (`extras.radbake.cast_shadows`, [`crate::scene::Instance`]); `None`
+/// where every instance does (the BVH then indexes `geometry` directly).
+pub fn shadow_casters(scene: &Scene, geometry: &Geometry) -> Option<Vec<u32>> {
+    let casts = |i: u32| {
+        scene
+            .instances
+            .get(i as usize)
+            .is_none_or(|inst| inst.cast_shadows)
+    };
+    if geometry.instance.iter().all(|&i| casts(i)) {
+        return None;
+    }
+    Some(
+        (0..geometry.len() as u32)
+            .filter(|&t| casts(geometry.instance[t as usize]))
+            .collect(),
+    )
 }
 
 /// Most triangles in a leaf of obvhs's binary BVH before the BVH4's
@@ -130,6 +153,8 @@ enum Accel {
 
 /// The scene's BVH and triangles, in BVH order.
 pub struct RayCaster {
+    /// The triangles in the BVH where not all are ([`shadow_casters`]).
+    casters: Option<Vec<u32>>,
     bvh: Accel,
     /// BVH order → global triangle id.
     ids: Vec<u32>,
@@ -165,13 +190,21 @@ impl RayCaster {
             max_prims_per_leaf: params.max_prims_per_leaf.min(BVH2_LEAF),
             ..params
         };
+        let casters = shadow_casters(scene, geometry);
         let bvh2 = obvhs::bvh2::builder::build_bvh2_from_tris(
-            &obvhs_triangles(geometry),
+            &obvhs_triangles(geometry, casters.as_deref()),
             params,
             &mut Duration::default(),
         );
         let cutouts = Cutouts::new(scene);
-        let ids: Vec<u32> = bvh2.primitive_indices.clone();
+        let ids: Vec<u32> = match &casters {
+            Some(c) => bvh2
+                .primitive_indices
+                .iter()
+                .map(|&i| c[i as usize])
+                .collect(),
+            None => bvh2.primitive_indices.clone(),
+        };
         let ordered: Vec<[Vec3; 3]> = ids.iter().map(|&g| geometry.p_ws[g as usize]).collect();
         let masked_material: Vec<u32> = ids
             .iter()
@@ -194,12 +227,19 @@ impl RayCaster {
         };
         let uv0 = ids.iter().map(|&g| geometry.uv0[g as usize]).collect();
         RayCaster {
+            casters,
             bvh,
             ids,
             masked_material,
             uv0,
             cutouts,
         }
+    }
+
+    /// The triangles in the BVH, where not every triangle is
+    /// ([`shadow_casters`]).
+    pub fn casters(&self) -> Option<&[u32]> {
+        self.casters.as_deref()
     }
 
     /// False where BVH-order triangle `k` is cut out (alpha mask) at

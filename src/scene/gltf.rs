@@ -195,6 +195,13 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene> {
             message: "the scene has no triangles to bake".into(),
         });
     }
+    if scene.instances.iter().all(|i| !i.cast_shadows) {
+        return Err(Error::Empty {
+            path: path.to_path_buf(),
+            message: "every node has extras.radbake.cast_shadows = false: rays would meet nothing"
+                .into(),
+        });
+    }
     scene.source = Some(super::SourceDocument {
         json,
         buffers,
@@ -428,6 +435,7 @@ fn import_nodes(
                             .texel_scale
                             .or(scene.meshes[mesh_index as usize].texel_scale)
                             .unwrap_or(1.0),
+                        cast_shadows: extras.cast_shadows.unwrap_or(true),
                     };
                     if extras.dynamic {
                         scene.dynamic.push(instance);
@@ -545,6 +553,8 @@ struct NodeExtras {
     angle: Option<f32>,
     /// `texel_scale`: the node's lightmap density over the bake's.
     texel_scale: Option<f32>,
+    /// `cast_shadows`: false leaves the node out of the ray caster.
+    cast_shadows: Option<bool>,
     /// Keys this version does not know (warned about).
     unknown: Vec<String>,
 }
@@ -621,8 +631,13 @@ fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeEx
                 });
             }
             "texel_scale" => out.texel_scale = Some(texel_scale(ctx, &at, v)?),
+            "cast_shadows" => {
+                out.cast_shadows = Some(v.as_bool().ok_or_else(|| {
+                    ctx.invalid(format!("{at}.cast_shadows"), "must be true or false")
+                })?);
+            }
             other => out.unknown.push(format!(
-                "{at}: unknown key `{other}` ignored (known: angle, dynamic, mode, probe_volume, radius, texel_scale)"
+                "{at}: unknown key `{other}` ignored (known: angle, cast_shadows, dynamic, mode, probe_volume, radius, texel_scale)"
             )),
         }
     }

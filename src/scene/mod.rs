@@ -60,6 +60,10 @@ pub struct Instance {
     /// The node's `extras.radbake.texel_scale`: its lightmap density is the
     /// bake's times this (1: the bake's).
     pub texel_scale: f32,
+    /// The node's `extras.radbake.cast_shadows` (default true): false
+    /// leaves it out of the ray caster, so it neither blocks nor reflects
+    /// light for anything else, and receives light in its own texels.
+    pub cast_shadows: bool,
 }
 
 impl Instance {
