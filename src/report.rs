@@ -144,6 +144,8 @@ pub struct InstanceReport {
     pub lightmap_mean: [f32; 3],
     /// The node's `texel_scale` (its density over the bake's).
     pub texel_scale: f32,
+    /// The node's `cast_shadows` (false: left out of the ray caster).
+    pub cast_shadows: bool,
     /// Atlas page.
     pub page: u32,
     /// Rectangle in the page, (min.x, min.y, max.x, max.y) in [0, 1] (Bevy's `uv_rect`).

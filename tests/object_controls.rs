@@ -192,6 +192,7 @@ fn cast_shadows_false_leaves_a_node_out_of_the_rays() {
             );
         }
         let plate = &bake.instance_reports()[1];
+        assert!(!plate.cast_shadows);
         assert!(
             (plate.mean[0] - e).abs() < 1e-3 * e,
             "plate {}",

@@ -61,6 +61,7 @@ impl Bake<'_> {
                     mean: mean(&sums.arrived),
                     lightmap_mean: mean(&sums.lightmap),
                     texel_scale: inst.texel_scale,
+                    cast_shadows: inst.cast_shadows,
                     page: r.page,
                     uv_rect: [r.min[0], r.min[1], r.max[0], r.max[1]],
                 }
