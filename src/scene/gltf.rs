@@ -497,6 +497,31 @@ fn import_nodes(
 /// 1/4096 of the area the bake's do).
 const MAX_TEXEL_SCALE: f64 = 64.0;
 
+/// The `radbake` object of an `extras` (`raw`, at `location`), with its
+/// own location; `None` where there is none.
+///
+/// # Errors
+/// Extras that are not JSON, or a `radbake` that is not an object.
+fn radbake_object(
+    ctx: &Ctx,
+    raw: Option<&serde_json::value::RawValue>,
+    location: &str,
+) -> Result<Option<(String, serde_json::Map<String, serde_json::Value>)>> {
+    let Some(raw) = raw else {
+        return Ok(None);
+    };
+    let mut value: serde_json::Value =
+        serde_json::from_str(raw.get()).map_err(|e| ctx.invalid(location, e.to_string()))?;
+    let Some(rb) = value.get_mut("radbake").map(serde_json::Value::take) else {
+        return Ok(None);
+    };
+    let at = format!("{location}.radbake");
+    match rb {
+        serde_json::Value::Object(obj) => Ok(Some((at, obj))),
+        _ => Err(ctx.invalid(&at, "must be an object")),
+    }
+}
+
 /// `texel_scale` under `at` (a node's or a mesh's `extras.radbake`).
 fn texel_scale(ctx: &Ctx, at: &str, v: &serde_json::Value) -> Result<f32> {
     match v.as_f64() {
@@ -513,20 +538,11 @@ fn texel_scale(ctx: &Ctx, at: &str, v: &serde_json::Value) -> Result<f32> {
 /// about.
 fn mesh_extras(ctx: &Ctx, mesh: &gltf::Mesh, warnings: &mut Vec<String>) -> Result<Option<f32>> {
     let location = format!("meshes[{}].extras", mesh.index());
-    let Some(raw) = mesh.extras() else {
+    let Some((at, obj)) = radbake_object(ctx, mesh.extras().as_deref(), &location)? else {
         return Ok(None);
     };
-    let value: serde_json::Value =
-        serde_json::from_str(raw.get()).map_err(|e| ctx.invalid(&location, e.to_string()))?;
-    let Some(rb) = value.get("radbake") else {
-        return Ok(None);
-    };
-    let at = format!("{location}.radbake");
-    let obj = rb
-        .as_object()
-        .ok_or_else(|| ctx.invalid(&at, "must be an object"))?;
     let mut scale = None;
-    for (key, v) in obj {
+    for (key, v) in &obj {
         match key.as_str() {
             "texel_scale" => scale = Some(texel_scale(ctx, &at, v)?),
             other => warnings.push(format!(
@@ -565,19 +581,11 @@ struct NodeExtras {
 /// error naming the node; a key this version does not know is a warning.
 fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeExtras> {
     let mut out = NodeExtras::default();
-    let Some(raw) = node.extras() else {
+    let extras = format!("{location}.extras");
+    let Some((at, obj)) = radbake_object(ctx, node.extras().as_deref(), &extras)? else {
         return Ok(out);
     };
-    let value: serde_json::Value = serde_json::from_str(raw.get())
-        .map_err(|e| ctx.invalid(format!("{location}.extras"), e.to_string()))?;
-    let Some(rb) = value.get("radbake") else {
-        return Ok(out);
-    };
-    let at = format!("{location}.extras.radbake");
-    let obj = rb
-        .as_object()
-        .ok_or_else(|| ctx.invalid(&at, "must be an object"))?;
-    for (key, v) in obj {
+    for (key, v) in &obj {
         match key.as_str() {
             "dynamic" => {
                 out.dynamic = v
