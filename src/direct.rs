@@ -621,8 +621,9 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> Texe
     let n_texel = s.texels.n_ws[t];
     // Pieces' points on the texel's side of its burial planes.
     let side = crate::burial::Side::of(s, t);
-    // (point, normal, value, direction, distance, weight aᵢ·lum(Eᵢ)) per lit piece.
-    let mut lit: Vec<(Vec3, Vec3, Vec3, Vec3, f32, f32)> = Vec::with_capacity(pieces.len());
+    // (point, normal, weight aᵢ·lum(Eᵢ), direction, distance) per lit
+    // piece: what [`light_visibility`] reads.
+    let mut lit: Vec<(Vec3, Vec3, f32, Vec3, f32)> = Vec::with_capacity(pieces.len());
     // Drawn from only by lights with a size.
     let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
     for light in &lights.punctual {
@@ -635,7 +636,7 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> Texe
                 let w = piece.area * value.element_sum();
                 if w > 0.0 {
                     unshadowed += value * (piece.area / total);
-                    lit.push((p, n, value, dir, dist, w));
+                    lit.push((p, n, w, dir, dist));
                 }
             }
         }
@@ -648,14 +649,10 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> Texe
         // texel of many small triangles vary from seed to seed (Sponza's
         // seed-to-seed noise RMS 0.88 % → 1.89 % with four random draws).
         if lit.len() > PIECE_RAYS {
-            lit.select_nth_unstable_by(PIECE_RAYS - 1, |a, b| b.5.total_cmp(&a.5));
+            lit.select_nth_unstable_by(PIECE_RAYS - 1, |a, b| b.2.total_cmp(&a.2));
             lit.truncate(PIECE_RAYS);
         }
-        let from: Vec<_> = lit
-            .iter()
-            .map(|&(p, n, _, dir, dist, w)| (p, n, w, dir, dist))
-            .collect();
-        let (visible, cast) = light_visibility(s.rays, light, &from, &mut rng);
+        let (visible, cast) = light_visibility(s.rays, light, &lit, &mut rng);
         out.rays += cast;
         if visible <= 0.0 {
             continue;
