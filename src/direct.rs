@@ -281,13 +281,14 @@ pub fn light_visibility(
         return (0.0, 0);
     }
     if !light.has_extent() {
+        // Weights summed in `total`'s order: a wholly lit texel sees 1.
         let mut visible = 0.0;
         for &(p, n, w, to, dist) in from {
             if punctual_unoccluded(rays, offset_ray_origin(p, n), to, dist) {
-                visible += w / total;
+                visible += w;
             }
         }
-        return (visible, from.len() as u64);
+        return ((visible / total).min(1.0), from.len() as u64);
     }
     let perm = rng.permutation(EXTENT_SAMPLES);
     let (mut seen, mut all, mut cast) = (0.0f32, 0.0f32, 0u64);
@@ -611,53 +612,22 @@ const PIECE_RAYS: usize = 4;
 /// Returns the baked lights' irradiance / π (in `light`), the mixed
 /// lights' (in `mixed`), the baked lights' directional part and the rays.
 pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> TexelDirect {
-    let g = s.geometry;
-    let pieces = s.texels.pieces_of(t);
-    let total: f32 = pieces.iter().map(|p| p.area).sum();
     let mut out = TexelDirect::default();
-    if pieces.is_empty() || total <= 0.0 {
+    let Some(mut pieces) = TexelPieces::new(s, t) else {
         return out;
-    }
+    };
     let n_texel = s.texels.n_ws[t];
-    // Pieces' points on the texel's side of its burial planes.
-    let side = crate::burial::Side::of(s, t);
-    // (point, normal, weight aᵢ·lum(Eᵢ), direction, distance) per lit
-    // piece: what [`light_visibility`] reads.
-    let mut lit: Vec<(Vec3, Vec3, f32, Vec3, f32)> = Vec::with_capacity(pieces.len());
     // Drawn from only by lights with a size.
     let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
     for light in &lights.punctual {
-        lit.clear();
-        let mut unshadowed = Vec3::ZERO;
-        for piece in pieces {
-            let p = side.fold(g.point(piece.tri, piece.u, piece.v));
-            let n = g.ng_ws[piece.tri as usize];
-            if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
-                let w = piece.area * value.element_sum();
-                if w > 0.0 {
-                    unshadowed += value * (piece.area / total);
-                    lit.push((p, n, w, dir, dist));
-                }
-            }
-        }
-        if lit.is_empty() {
+        let Some(seen) = pieces.light(s, light, &mut rng) else {
+            continue;
+        };
+        out.rays += seen.rays;
+        if seen.visible <= 0.0 {
             continue;
         }
-        // Shadow rays from the (up to) four pieces that carry the most of U;
-        // their weighted lit fraction stands for the texel's. Chosen by
-        // weight, not drawn at random: drawing made the lit fraction of a
-        // texel of many small triangles vary from seed to seed (Sponza's
-        // seed-to-seed noise RMS 0.88 % → 1.89 % with four random draws).
-        if lit.len() > PIECE_RAYS {
-            lit.select_nth_unstable_by(PIECE_RAYS - 1, |a, b| b.2.total_cmp(&a.2));
-            lit.truncate(PIECE_RAYS);
-        }
-        let (visible, cast) = light_visibility(s.rays, light, &lit, &mut rng);
-        out.rays += cast;
-        if visible <= 0.0 {
-            continue;
-        }
-        let value = unshadowed * visible;
+        let value = seen.unshadowed * seen.visible;
         if light.mode.is_mixed() {
             out.mixed += value;
             continue;
@@ -665,13 +635,105 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> Texe
         out.light += value;
         // Directional part as for a single point (see [`direct_at`]), from
         // the texel's mean normal and the first lit piece's direction.
-        let dir = lit[0].3;
-        let cos = n_texel.dot(dir).max(1e-3);
+        let cos = n_texel.dot(seen.dir).max(1e-3);
         for (c, b) in out.directional.iter_mut().enumerate() {
-            *b += value * (dir[c] / cos);
+            *b += value * (seen.dir[c] / cos);
         }
     }
     out
+}
+
+/// A texel's pieces, ready to be lit by one punctual light after another
+/// (see [`pieces_direct`]).
+pub struct TexelPieces<'a> {
+    pieces: &'a [crate::texels::Piece],
+    total: f32,
+    side: crate::burial::Side<'a>,
+    /// (point, normal, weight aᵢ·lum(Eᵢ), direction, distance) per lit
+    /// piece of the current light: what [`light_visibility`] reads.
+    lit: Vec<(Vec3, Vec3, f32, Vec3, f32)>,
+}
+
+/// What one punctual light does at a texel ([`TexelPieces::light`]).
+#[derive(Clone, Copy, Debug)]
+pub struct PiecesLight {
+    /// Unshadowed irradiance / π, the area-weighted mean over the pieces.
+    pub unshadowed: Vec3,
+    /// The lit fraction of `unshadowed` (0–1).
+    pub visible: f32,
+    /// Direction to the light from the first lit piece.
+    pub dir: Vec3,
+    /// Shadow rays cast.
+    pub rays: u64,
+}
+
+impl<'a> TexelPieces<'a> {
+    /// Texel `t`'s pieces; None when it has none (or no area).
+    pub fn new(s: &Surfaces<'a>, t: usize) -> Option<TexelPieces<'a>> {
+        let pieces = s.texels.pieces_of(t);
+        let total: f32 = pieces.iter().map(|p| p.area).sum();
+        if pieces.is_empty() || total <= 0.0 {
+            return None;
+        }
+        Some(TexelPieces {
+            pieces,
+            total,
+            // Pieces' points on the texel's side of its burial planes.
+            side: crate::burial::Side::of(s, t),
+            lit: Vec::with_capacity(pieces.len()),
+        })
+    }
+
+    /// True when `light` reaches any piece (in range, in its cone, in
+    /// front of the piece), shadows aside: no rays.
+    pub fn reached_by(&self, s: &Surfaces, light: &Light) -> bool {
+        let g = s.geometry;
+        self.pieces.iter().any(|piece| {
+            let p = self.side.fold(g.point(piece.tri, piece.u, piece.v));
+            punctual_irradiance(light, p, g.ng_ws[piece.tri as usize])
+                .is_some_and(|(v, _, _)| v.element_sum() > 0.0)
+        })
+    }
+
+    /// `light` at the texel: the unshadowed irradiance summed exactly
+    /// over the pieces and its lit fraction from up to [`PIECE_RAYS`] of
+    /// them (see [`pieces_direct`]); None where it reaches no piece.
+    pub fn light(&mut self, s: &Surfaces, light: &Light, rng: &mut Stream) -> Option<PiecesLight> {
+        let g = s.geometry;
+        self.lit.clear();
+        let mut unshadowed = Vec3::ZERO;
+        for piece in self.pieces {
+            let p = self.side.fold(g.point(piece.tri, piece.u, piece.v));
+            let n = g.ng_ws[piece.tri as usize];
+            if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
+                let w = piece.area * value.element_sum();
+                if w > 0.0 {
+                    unshadowed += value * (piece.area / self.total);
+                    self.lit.push((p, n, w, dir, dist));
+                }
+            }
+        }
+        if self.lit.is_empty() {
+            return None;
+        }
+        // Shadow rays from the (up to) four pieces that carry the most of U;
+        // their weighted lit fraction stands for the texel's. Chosen by
+        // weight, not drawn at random: drawing made the lit fraction of a
+        // texel of many small triangles vary from seed to seed (Sponza's
+        // seed-to-seed noise RMS 0.88 % → 1.89 % with four random draws).
+        if self.lit.len() > PIECE_RAYS {
+            self.lit
+                .select_nth_unstable_by(PIECE_RAYS - 1, |a, b| b.2.total_cmp(&a.2));
+            self.lit.truncate(PIECE_RAYS);
+        }
+        let (visible, rays) = light_visibility(s.rays, light, &self.lit, rng);
+        Some(PiecesLight {
+            unshadowed,
+            visible,
+            dir: self.lit[0].3,
+            rays,
+        })
+    }
 }
 
 /// Direct light at every texel (see [`direct_at`]): area lights and sky

@@ -56,6 +56,7 @@ pub mod report;
 pub mod sampling;
 pub mod scene;
 pub mod seams;
+pub mod shadowmask;
 pub mod solve;
 pub mod texels;
 pub mod trace;

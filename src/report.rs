@@ -82,6 +82,8 @@ pub struct Counts {
     pub invalid_probes: u64,
     /// Rays cast by the probes (sphere rays, emitter samples, shadow rays).
     pub rays_probes: u64,
+    /// Shadow rays cast by the shadowmask stage.
+    pub rays_shadowmask: u64,
     /// Form-factor rays that left the scene.
     pub rays_escaped: u64,
     /// Form-factor rays that hit the back of a one-sided surface.
@@ -163,8 +165,17 @@ pub struct LightReport {
     #[serde(rename = "type")]
     pub kind: &'static str,
     /// `baked`, `indirect`, `shadowmask` or `realtime`
-    /// ([`crate::scene::LightMode`]).
+    /// ([`crate::scene::LightMode`]): the mode it was baked in (`indirect`
+    /// for a shadowmask light that got no channel).
     pub mode: &'static str,
+    /// A shadowmask light's channel in the shadowmask pages (`r`, `g`, `b`,
+    /// `a`); absent for the other modes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shadowmask_channel: Option<&'static str>,
+    /// `shadowmask` for a shadowmask light that got no channel (it
+    /// overlaps four that hold them) and was baked as `indirect`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub requested: Option<&'static str>,
 }
 
 impl LightReport {
@@ -180,7 +191,33 @@ impl LightReport {
                 LightKind::Spot { .. } => "spot",
             },
             mode: light.mode.name(),
+            shadowmask_channel: None,
+            requested: None,
         }
+    }
+
+    /// The report lines of a bake's lights, with the shadowmask channels
+    /// that `channel` (per light, see [`crate::shadowmask::Shadowmask`])
+    /// assigned.
+    pub fn all(lights: &[crate::scene::Light], channel: Option<&[Option<u8>]>) -> Vec<LightReport> {
+        use crate::scene::LightMode;
+        lights
+            .iter()
+            .enumerate()
+            .map(|(l, light)| {
+                let mut r = LightReport::of(light);
+                if light.mode == LightMode::Shadowmask {
+                    match channel.and_then(|c| c[l]) {
+                        Some(c) => r.shadowmask_channel = Some(["r", "g", "b", "a"][c as usize]),
+                        None => {
+                            r.mode = LightMode::Indirect.name();
+                            r.requested = Some(LightMode::Shadowmask.name());
+                        }
+                    }
+                }
+                r
+            })
+            .collect()
     }
 }
 
@@ -240,6 +277,7 @@ impl Report {
             "burial" => c.rays_burial,
             "final_gather" => c.rays_gather,
             "probes" => c.rays_probes,
+            "shadowmask" => c.rays_shadowmask,
             _ => 0,
         }
     }

@@ -11,40 +11,10 @@
 
 mod common;
 
-use common::{quad, temp_dir, GltfBuilder};
+use common::{check_penumbra, edge_scene, DENSITY, H, SUN};
 use radbake::{BakeConfig, Silent};
 use serde_json::{json, Value};
 use std::f64::consts::PI;
-use std::path::PathBuf;
-
-/// Plate height, sun irradiance (W/m²), texel density.
-const H: f32 = 20.0;
-const SUN: f32 = 2.0;
-const DENSITY: f32 = 50.0;
-
-/// A black 4 × 4 m ground at y = 0 and a black plate at height `H` over
-/// x < 0 (edge along z at x = 0), under a sun straight down whose node
-/// has `extras`.
-fn edge_scene(name: &str, extras: Option<Value>) -> PathBuf {
-    let mut b = GltfBuilder::default();
-    let black = b.material([0.0; 3], [0.0; 3]);
-    let (p, i) = quad([-2.0, 0.0, -2.0], [0.0, 0.0, 4.0], [4.0, 0.0, 0.0]);
-    let m = b.mesh(&p, &i, Some(black));
-    b.node("ground", m);
-    let (p, i) = quad([-2.5, H, -2.5], [0.0, 0.0, 5.0], [2.5, 0.0, 0.0]);
-    let m = b.mesh(&p, &i, Some(black));
-    b.node("plate", m);
-    let mut doc = b.json();
-    common::add_vertical_sun(&mut doc, SUN);
-    if let Some(e) = extras {
-        let nodes = doc["nodes"].as_array_mut().unwrap();
-        let sun = nodes.len() - 1;
-        nodes[sun]["extras"] = e;
-    }
-    let path = temp_dir(name).join("edge.gltf");
-    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
-    path
-}
 
 fn config() -> BakeConfig {
     BakeConfig {
@@ -52,80 +22,6 @@ fn config() -> BakeConfig {
         probes: false,
         ..BakeConfig::default()
     }
-}
-
-/// Fraction of the unit disk with coordinate below `a` (clamped).
-fn disk_below(a: f64) -> f64 {
-    let a = a.clamp(-1.0, 1.0);
-    (a * (1.0 - a * a).sqrt() + a.asin() + PI / 2.0) / PI
-}
-
-/// Checks the penumbra on the ground below the plate's edge: per column
-/// of ground texels (the mean over the 150 texels along the edge, so the
-/// per-texel sampling noise averages out), the lightmap over the
-/// unshadowed value `e(x)` is the analytic visible fraction F(x / r)
-/// averaged over the texel's width within 0.03, and the 10–90 % width of
-/// the penumbra is within 10 % of the analytic one. Returns the two widths.
-fn check_penumbra(bake: &radbake::Bake, e: impl Fn(f64) -> f64, r: f64) -> (f64, f64) {
-    let tx = &bake.texels;
-    let width = 1.0 / DENSITY as f64;
-    let mut cols: std::collections::BTreeMap<i64, (f64, f64, u32)> = Default::default();
-    for t in 0..tx.len() {
-        let p = tx.p_ws[t];
-        if tx.instance[t] != 0 || p.z.abs() > 1.5 || (p.x as f64).abs() > 2.5 * r {
-            continue;
-        }
-        if (tx.area[t] as f64) < 0.99 * width * width {
-            continue; // a partly covered texel at the ground's edge
-        }
-        let key = (p.x as f64 / width).floor() as i64;
-        let c = cols.entry(key).or_insert((0.0, 0.0, 0));
-        c.0 += bake.transport.values[t].x as f64;
-        c.1 += p.x as f64;
-        c.2 += 1;
-    }
-    assert!(cols.len() >= 8, "{} columns", cols.len());
-    let mut worst = 0.0f64;
-    let mut profile = Vec::new();
-    for (sum, xs, n) in cols.values() {
-        let x = xs / *n as f64;
-        let got = sum / *n as f64 / e(x);
-        // F averaged over the texel's width.
-        let k = 64;
-        let want: f64 = (0..k)
-            .map(|j| disk_below((x + width * ((j as f64 + 0.5) / k as f64 - 0.5)) / r))
-            .sum::<f64>()
-            / k as f64;
-        eprintln!("x {x:+.4}: {got:.4} (analytic {want:.4}, {n} texels)");
-        worst = worst.max((got - want).abs());
-        profile.push((x, got));
-    }
-    assert!(worst < 0.03, "worst column {worst}");
-    // The 10–90 % width, by linear interpolation of the column profile.
-    let cross = |level: f64| {
-        profile
-            .windows(2)
-            .find(|w| w[0].1 < level && w[1].1 >= level)
-            .map(|w| w[0].0 + (level - w[0].1) / (w[1].1 - w[0].1) * (w[1].0 - w[0].0))
-            .expect("the profile crosses the level")
-    };
-    let measured = cross(0.9) - cross(0.1);
-    let solve = |level: f64| {
-        let (mut lo, mut hi) = (-1.0, 1.0);
-        for _ in 0..60 {
-            let mid = 0.5 * (lo + hi);
-            if disk_below(mid) < level {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        lo * r
-    };
-    let analytic = solve(0.9) - solve(0.1);
-    eprintln!("10–90 % width: {measured:.4} m, analytic {analytic:.4} m (r = {r:.4} m)");
-    assert!((measured / analytic - 1.0).abs() < 0.10);
-    (measured, analytic)
 }
 
 /// A 0.53° sun straight above the plate's edge 20 m up: on the ground, the
@@ -140,7 +36,8 @@ fn sun_disk_gives_the_analytic_penumbra() {
     assert!(scene.lights[0].has_extent());
     let bake = radbake::bake(&scene, &config(), &Silent).unwrap();
     let r = H as f64 * (0.5 * angle_deg.to_radians()).tan();
-    check_penumbra(&bake, |_| SUN as f64 / PI, r);
+    let v = &bake.transport.values;
+    check_penumbra(&bake, |t| v[t].x as f64 / (SUN as f64 / PI), r);
 }
 
 /// A sphere light of radius R = 5 cm at height 30 m above the plate's edge
@@ -170,7 +67,8 @@ fn sphere_light_gives_the_analytic_penumbra() {
         let d2 = height * height + x * x;
         intensity * (height / d2.sqrt()) / (PI * d2)
     };
-    check_penumbra(&bake, e, r);
+    let (v, p) = (&bake.transport.values, &bake.texels.p_ws);
+    check_penumbra(&bake, |t| v[t].x as f64 / e(p[t].x as f64), r);
 }
 
 /// `angle: 0` and `radius: 0` are the delta lights of today, bit for bit;

@@ -144,7 +144,7 @@ pub struct BakeArgs {
     /// A light's bake mode, by its light's or node's name (repeatable; overrides the node's
     /// extras.radbake.mode and the config): baked (direct + bounced light in the lightmap),
     /// indirect (bounced only; the engine draws its direct light), shadowmask (as indirect,
-    /// plus its occlusion in a shadowmask page; not built yet, refused), realtime (not baked).
+    /// plus its occlusion in a channel of the shadowmask pages), realtime (not baked).
     #[arg(long = "light-mode", value_name = "NAME=MODE", value_parser = parse_light_mode)]
     pub light_mode: Vec<(String, radbake::scene::LightMode)>,
     /// Starting settings, below the config file and flags [default: medium].

@@ -130,6 +130,7 @@ pub fn baked_glb(
     scene: &Scene,
     atlas: &Atlas,
     pages: &[EncodedPage],
+    masks: Option<Masks>,
     name: &str,
 ) -> Result<Vec<u8>> {
     let fail = |m: String| encode_error(name, m);
@@ -141,9 +142,13 @@ pub fn baked_glb(
     let (mut b, view_offsets) = pack_buffers(&doc, &src.buffers);
     embed_images(&mut doc, &src.images, &mut b, name)?;
     let pages = lightmap_textures(&mut doc, &mut b, pages);
+    let mask_textures = masks.map(|m| shadowmask_textures(&mut doc, &mut b, m.png));
     let prims = reindex_primitives(scene, atlas, &doc, &mut b, &view_offsets, name)?;
     lightmapped_instances(scene, atlas, &mut doc, &prims, &pages);
-    light_modes(scene, &mut doc);
+    if let (Some(textures), Some(m)) = (&mask_textures, &masks) {
+        shadowmask_extras(scene, atlas, &mut doc, textures, m.channel);
+    }
+    light_modes(scene, masks.map(|m| m.channel), &mut doc);
     Ok(finish(doc, b))
 }
 
@@ -151,9 +156,12 @@ pub fn baked_glb(
 /// key the bake reads), so an engine or the preview knows which lights
 /// to draw in real time whatever set the mode (the node, the config or the
 /// CLI). A node whose `extras` is not an object keeps it (the manifest
-/// lists the mode as well).
-fn light_modes(scene: &Scene, doc: &mut Value) {
-    for light in &scene.lights {
+/// lists the mode as well). A shadowmask light also gets its
+/// `shadowmask_channel` (`r`, `g`, `b` or `a`); one that got no channel
+/// is written as `indirect`, the mode it was baked in.
+fn light_modes(scene: &Scene, channel: Option<&[Option<u8>]>, doc: &mut Value) {
+    use crate::scene::LightMode;
+    for (l, light) in scene.lights.iter().enumerate() {
         let Some(node) = doc["nodes"].get_mut(light.node_index) else {
             continue;
         };
@@ -165,8 +173,17 @@ fn light_modes(scene: &Scene, doc: &mut Value) {
             continue;
         };
         let radbake = extras.entry("radbake").or_insert_with(|| json!({}));
-        if let Some(radbake) = radbake.as_object_mut() {
-            radbake.insert("mode".into(), json!(light.mode.name()));
+        let Some(radbake) = radbake.as_object_mut() else {
+            continue;
+        };
+        let c = channel.and_then(|c| c[l]);
+        let mode = match (light.mode, c) {
+            (LightMode::Shadowmask, None) => LightMode::Indirect,
+            (m, _) => m,
+        };
+        radbake.insert("mode".into(), json!(mode.name()));
+        if let Some(c) = c {
+            radbake.insert("shadowmask_channel".into(), json!(CHANNEL_NAMES[c as usize]));
         }
     }
 }
@@ -286,6 +303,102 @@ fn lightmap_textures(doc: &mut Value, b: &mut Builder, encoded: &[EncodedPage]) 
         })
         .collect();
     pages
+}
+
+/// The shadowmask for the baked `.glb`: each page's PNG and each scene
+/// light's channel.
+#[derive(Clone, Copy)]
+pub struct Masks<'a> {
+    /// PNG bytes per page.
+    pub png: &'a [Vec<u8>],
+    /// Per scene light, its channel.
+    pub channel: &'a [Option<u8>],
+}
+
+/// Channel names, in the order of a page's RGBA.
+const CHANNEL_NAMES: [&str; 4] = ["r", "g", "b", "a"];
+
+/// The shadowmask pages as PNG textures (linear data, clamped, filtered
+/// bilinearly), in page order.
+fn shadowmask_textures(doc: &mut Value, b: &mut Builder, png: &[Vec<u8>]) -> Vec<usize> {
+    let sampler = push(
+        doc,
+        "samplers",
+        json!({"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}),
+    );
+    (0..png.len())
+        .map(|page| {
+            let view = b.view(&png[page], None, None);
+            let name = format!("shadowmask_{page}");
+            let image = push(
+                doc,
+                "images",
+                json!({"bufferView": view, "mimeType": "image/png", "name": name}),
+            );
+            push(
+                doc,
+                "textures",
+                json!({"source": image, "sampler": sampler, "name": name}),
+            )
+        })
+        .collect()
+}
+
+/// Every lightmapped material (each instance has its own copies, see
+/// [`lightmapped_instances`]) references its shadowmask page in
+/// `extras.radbake.shadowmask`: `index` (texture), `texCoord: 1`, `offset`
+/// and `scale` (the instance rectangle, as `MOZ_lightmap`'s
+/// `KHR_texture_transform`), and `channels`: the glTF node index of the
+/// light each of r, g, b, a holds (null where none).
+fn shadowmask_extras(
+    scene: &Scene,
+    atlas: &Atlas,
+    doc: &mut Value,
+    textures: &[usize],
+    channel: &[Option<u8>],
+) {
+    let mut holders = [const { Vec::new() }; 4];
+    for (l, c) in channel.iter().enumerate() {
+        if let Some(c) = c {
+            holders[*c as usize].push(scene.lights[l].node_index);
+        }
+    }
+    let channels: serde_json::Map<String, Value> = CHANNEL_NAMES
+        .iter()
+        .zip(&holders)
+        .map(|(n, h)| (n.to_string(), json!(h)))
+        .collect();
+    for (i, inst) in scene.instances.iter().enumerate() {
+        let rect = atlas.instances[i];
+        let entry = json!({
+            "index": textures[rect.page as usize],
+            "texCoord": 1,
+            "offset": [rect.min[0], rect.min[1]],
+            "scale": [rect.max[0] - rect.min[0], rect.max[1] - rect.min[1]],
+            "channels": channels,
+        });
+        let Some(mesh) = doc["nodes"][inst.node_index]["mesh"].as_u64() else {
+            continue;
+        };
+        let materials: Vec<u64> = doc["meshes"][mesh as usize]["primitives"]
+            .as_array()
+            .map(|ps| ps.iter().filter_map(|p| p["material"].as_u64()).collect())
+            .unwrap_or_default();
+        for m in materials {
+            let material = &mut doc["materials"][m as usize];
+            if material["extensions"].get("MOZ_lightmap").is_none() {
+                // A primitive the bake left alone keeps its shared material.
+                continue;
+            }
+            if !material["extras"].is_object() {
+                material["extras"] = json!({});
+            }
+            if !material["extras"]["radbake"].is_object() {
+                material["extras"]["radbake"] = json!({});
+            }
+            material["extras"]["radbake"]["shadowmask"] = entry.clone();
+        }
+    }
 }
 
 /// Re-indexed primitives by (glTF mesh, primitive): (attributes, targets)

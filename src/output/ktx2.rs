@@ -14,6 +14,8 @@ const VK_FORMAT_E5B9G9R9_UFLOAT_PACK32: u32 = 123;
 const VK_FORMAT_R16G16B16A16_SFLOAT: u32 = 97;
 /// `VK_FORMAT_BC6H_UFLOAT_BLOCK`.
 const VK_FORMAT_BC6H_UFLOAT_BLOCK: u32 = 143;
+/// `VK_FORMAT_R8G8B8A8_UNORM`.
+const VK_FORMAT_R8G8B8A8_UNORM: u32 = 37;
 
 /// Packs linear RGB into RGB9E5 as the Vulkan specification's
 /// "Shared Exponent" section (from `EXT_texture_shared_exponent`) defines:
@@ -140,6 +142,34 @@ pub fn ktx2_rgba16f_zstd(width: u32, height: u32, texels: &[Vec3], level: i32) -
     file(
         VK_FORMAT_R16G16B16A16_SFLOAT,
         2,
+        [width, height, 0],
+        &dfd,
+        &raw,
+        Some(level),
+    )
+}
+
+/// A 2D KTX2 file of `width` × `height` linear RGBA8 texels (row by row)
+/// in `R8G8B8A8_UNORM`, Zstandard supercompressed at `level`: for the
+/// shadowmask pages (visibility, where 8 bits are enough). The data format
+/// descriptor is Khronos's basic one: RGBSDA, BT.709, linear, straight
+/// alpha, four 8-bit samples of range 0–255.
+pub fn ktx2_rgba8_zstd(width: u32, height: u32, texels: &[[u8; 4]], level: i32) -> Vec<u8> {
+    assert_eq!(texels.len(), (width * height) as usize);
+    let raw: Vec<u8> = texels.iter().flatten().copied().collect();
+    let mut dfd = vec![
+        1 | 1 << 8 | 1 << 16, // model RGBSDA, primaries BT.709, linear
+        0,                    // texel block dimensions 1×1×1×1
+        4,                    // bytes per plane 0
+        0,
+    ];
+    // R, G, B, A (channel 15): 8 bits each, no qualifiers, 0–255.
+    for (k, ch) in [0u32, 1, 2, 15].into_iter().enumerate() {
+        dfd.extend([(8 * k as u32) | 7 << 16 | ch << 24, 0, 0, 255]);
+    }
+    file(
+        VK_FORMAT_R8G8B8A8_UNORM,
+        1,
         [width, height, 0],
         &dfd,
         &raw,

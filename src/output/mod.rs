@@ -7,6 +7,7 @@ pub mod baked;
 pub mod ktx2;
 pub mod png8;
 pub mod probes;
+pub mod shadowmask;
 
 use crate::error::{Error, Result};
 use crate::lightmap::Lightmaps;
@@ -373,9 +374,22 @@ pub fn write_engine_outputs(
         }
     }
     let scale_of = |i: usize| encoded.iter().find_map(|e| e.scales[i]).unwrap_or(1.0);
+    let mask = match &bake.shadowmask {
+        Some(m) => {
+            let ktx2_on = bake.config.ktx2 != crate::config::Ktx2Mode::Off;
+            let w = shadowmask::write(out_dir, m, &scene.lights, ktx2_on)?;
+            written.extend(w.paths.iter().cloned());
+            Some((m, w))
+        }
+        None => None,
+    };
     let glb_name = format!("{stem}.baked.glb");
     if scene.source.is_some() {
-        let glb = baked::baked_glb(scene, atlas, &encoded, &glb_name)?;
+        let masks = mask.as_ref().map(|(m, w)| baked::Masks {
+            png: &w.png,
+            channel: &m.channel,
+        });
+        let glb = baked::baked_glb(scene, atlas, &encoded, masks, &glb_name)?;
         write_bytes_atomic(&out_dir.join(&glb_name), &glb)?;
         written.push(out_dir.join(&glb_name));
     }
@@ -418,8 +432,9 @@ pub fn write_engine_outputs(
         "baked_gltf": if scene.source.is_some() { serde_json::json!(glb_name) } else { serde_json::Value::Null },
         "pages": pages,
         "instances": instances,
-        "lights": bake.scene.lights.iter().map(crate::report::LightReport::of).collect::<Vec<_>>(),
+        "lights": crate::report::LightReport::all(&scene.lights, bake.shadowmask.as_ref().map(|m| m.channel.as_slice())),
         "probes": probes_entry,
+        "shadowmask": mask.map_or(serde_json::Value::Null, |(_, w)| w.manifest),
     });
     let path = out_dir.join("manifest.json");
     let text = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::Encode {

@@ -32,7 +32,8 @@ use crate::probes::{self, Probes};
 use crate::progress::Progress;
 use crate::raycast::RayCaster;
 use crate::report::StageTime;
-use crate::scene::{LightMode, Scene};
+use crate::scene::Scene;
+use crate::shadowmask::Shadowmask;
 use crate::texels::{self, Texels};
 use log::Log;
 pub use maps::Maps;
@@ -59,6 +60,8 @@ pub struct Bake<'s> {
     pub transport: TexelLight,
     /// Lightmap pages (and SH, AO pages), seam counters.
     pub maps: Maps,
+    /// Shadowmask pages and channels (`None` without shadowmask lights).
+    pub shadowmask: Option<Shadowmask>,
     /// Light probes (`None` with `probes = false`).
     pub probes: Option<Probes>,
     /// Wall time per stage.
@@ -80,16 +83,13 @@ pub fn bake<'s>(
 ) -> Result<Bake<'s>> {
     config.validate()?;
     config.light_modes.check(scene)?;
-    if let Some(l) = scene
-        .lights
-        .iter()
-        .find(|l| l.mode == LightMode::Shadowmask)
-    {
+    let masked = crate::shadowmask::lights(&scene.lights).len();
+    if masked > crate::shadowmask::MAX_LIGHTS {
         return Err(crate::Error::Config {
             key: "light_modes".into(),
             message: format!(
-                "light `{}`: shadowmask mode is not built yet (its pages come with issue #23's next part); use indirect",
-                l.name
+                "{masked} shadowmask lights, above the limit of {}; make the others indirect",
+                crate::shadowmask::MAX_LIGHTS
             ),
         });
     }
@@ -134,6 +134,8 @@ pub fn bake<'s>(
     let maps = maps::build(&surfaces, atlas.page_count, &light, config);
     log.end("lightmaps");
 
+    let shadowmask = shadowmask(&surfaces, atlas.page_count, &light.valid, config, &mut log);
+
     let probes = config.probes.then(|| {
         log.begin("probes", 0);
         let progress = log.progress();
@@ -161,6 +163,7 @@ pub fn bake<'s>(
         burial,
         transport: light,
         maps,
+        shadowmask,
         probes,
         stages: log.stages,
         warnings: log.warnings,
@@ -224,6 +227,31 @@ fn burial_planes(
     );
     log.end("burial");
     burial
+}
+
+/// The shadowmask stage ([`crate::shadowmask`]) where the scene has
+/// shadowmask lights; a light without a channel is warned about.
+fn shadowmask(
+    s: &Surfaces,
+    page_count: u32,
+    valid: &[bool],
+    config: &BakeConfig,
+    log: &mut Log,
+) -> Option<Shadowmask> {
+    if crate::shadowmask::lights(&s.scene.lights).is_empty() {
+        return None;
+    }
+    log.begin("shadowmask", 0);
+    let rings = (
+        crate::lightmap::fill_rings(config.patch_texels),
+        2 * config.padding,
+    );
+    let mask = crate::shadowmask::bake(s, valid, page_count, rings, config.seed);
+    if let Some(m) = &mask {
+        log.warnings.extend(m.warnings(&s.scene.lights));
+    }
+    log.end("shadowmask");
+    mask
 }
 
 /// What the probe stage has to say: a budget that coarsened the spacing

@@ -137,10 +137,14 @@ impl Bake<'_> {
                 nonzeros: patch_light
                     .and_then(|p| p.form_factors.as_ref())
                     .map_or(0, |f| f.nnz() as u64),
-                rays: rays.total() + self.burial.stats.rays + probes.map_or(0, |p| p.rays),
+                rays: rays.total()
+                    + self.burial.stats.rays
+                    + probes.map_or(0, |p| p.rays)
+                    + self.shadowmask.as_ref().map_or(0, |m| m.rays),
                 probes: probes.map_or(0, |p| p.len() as u64),
                 invalid_probes: probes.map_or(0, |p| p.invalid() as u64),
                 rays_probes: probes.map_or(0, |p| p.rays),
+                rays_shadowmask: self.shadowmask.as_ref().map_or(0, |m| m.rays),
                 rays_burial: self.burial.stats.rays,
                 clipped_texels: self.burial.stats.clipped,
                 moved_texels: self.burial.stats.moved,
@@ -160,12 +164,10 @@ impl Bake<'_> {
             },
             energy: self.energy(),
             instances: self.instance_reports(),
-            lights: self
-                .scene
-                .lights
-                .iter()
-                .map(crate::report::LightReport::of)
-                .collect(),
+            lights: crate::report::LightReport::all(
+                &self.scene.lights,
+                self.shadowmask.as_ref().map(|m| m.channel.as_slice()),
+            ),
             warnings: self.warnings.clone(),
         }
     }

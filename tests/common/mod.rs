@@ -390,3 +390,109 @@ pub fn centre_linear(img: &image::RgbaImage) -> glam::Vec3 {
     }
     sum / 9.0
 }
+
+// ---- A plate's edge under a light with a size (penumbra tests) ----
+
+/// Plate height, sun irradiance (W/m²), texel density.
+pub const H: f32 = 20.0;
+pub const SUN: f32 = 2.0;
+pub const DENSITY: f32 = 50.0;
+
+/// A black 4 × 4 m ground at y = 0 and a black plate at height `H` over
+/// x < 0 (edge along z at x = 0), under a sun straight down whose node
+/// has `extras`.
+pub fn edge_scene(name: &str, extras: Option<Value>) -> PathBuf {
+    let mut b = GltfBuilder::default();
+    let black = b.material([0.0; 3], [0.0; 3]);
+    let (p, i) = quad([-2.0, 0.0, -2.0], [0.0, 0.0, 4.0], [4.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(black));
+    b.node("ground", m);
+    let (p, i) = quad([-2.5, H, -2.5], [0.0, 0.0, 5.0], [2.5, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(black));
+    b.node("plate", m);
+    let mut doc = b.json();
+    add_vertical_sun(&mut doc, SUN);
+    if let Some(e) = extras {
+        let nodes = doc["nodes"].as_array_mut().unwrap();
+        let sun = nodes.len() - 1;
+        nodes[sun]["extras"] = e;
+    }
+    let path = temp_dir(name).join("edge.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+/// Fraction of the unit disk with coordinate below `a` (clamped).
+pub fn disk_below(a: f64) -> f64 {
+    let a = a.clamp(-1.0, 1.0);
+    (a * (1.0 - a * a).sqrt() + a.asin() + std::f64::consts::PI / 2.0) / std::f64::consts::PI
+}
+
+/// Checks the penumbra on the ground below the plate's edge: per column
+/// of ground texels (the mean over the 150 texels along the edge, so the
+/// per-texel sampling noise averages out), the visible fraction
+/// `fraction(texel)` is the analytic visible fraction F(x / r)
+/// averaged over the texel's width within 0.03, and the 10–90 % width of
+/// the penumbra is within 10 % of the analytic one. Returns the two widths.
+pub fn check_penumbra(bake: &radbake::Bake, fraction: impl Fn(usize) -> f64, r: f64) -> (f64, f64) {
+    let tx = &bake.texels;
+    let width = 1.0 / DENSITY as f64;
+    let mut cols: std::collections::BTreeMap<i64, (f64, f64, u32)> = Default::default();
+    for t in 0..tx.len() {
+        let p = tx.p_ws[t];
+        if tx.instance[t] != 0 || p.z.abs() > 1.5 || (p.x as f64).abs() > 2.5 * r {
+            continue;
+        }
+        if (tx.area[t] as f64) < 0.99 * width * width {
+            continue; // a partly covered texel at the ground's edge
+        }
+        let key = (p.x as f64 / width).floor() as i64;
+        let c = cols.entry(key).or_insert((0.0, 0.0, 0));
+        c.0 += fraction(t);
+        c.1 += p.x as f64;
+        c.2 += 1;
+    }
+    assert!(cols.len() >= 8, "{} columns", cols.len());
+    let mut worst = 0.0f64;
+    let mut profile = Vec::new();
+    for (sum, xs, n) in cols.values() {
+        let x = xs / *n as f64;
+        let got = sum / *n as f64;
+        // F averaged over the texel's width.
+        let k = 64;
+        let want: f64 = (0..k)
+            .map(|j| disk_below((x + width * ((j as f64 + 0.5) / k as f64 - 0.5)) / r))
+            .sum::<f64>()
+            / k as f64;
+        eprintln!("x {x:+.4}: {got:.4} (analytic {want:.4}, {n} texels)");
+        worst = worst.max((got - want).abs());
+        profile.push((x, got));
+    }
+    assert!(worst < 0.03, "worst column {worst}");
+    // The 10–90 % width, by linear interpolation of the column profile.
+    let cross = |level: f64| {
+        profile
+            .windows(2)
+            .find(|w| w[0].1 < level && w[1].1 >= level)
+            .map(|w| w[0].0 + (level - w[0].1) / (w[1].1 - w[0].1) * (w[1].0 - w[0].0))
+            .expect("the profile crosses the level")
+    };
+    let measured = cross(0.9) - cross(0.1);
+    let solve = |level: f64| {
+        let (mut lo, mut hi) = (-1.0, 1.0);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if disk_below(mid) < level {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo * r
+    };
+    let analytic = solve(0.9) - solve(0.1);
+    eprintln!("10–90 % width: {measured:.4} m, analytic {analytic:.4} m (r = {r:.4} m)");
+    assert!((measured / analytic - 1.0).abs() < 0.10);
+    (measured, analytic)
+}
+
