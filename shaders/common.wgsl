@@ -36,15 +36,17 @@ struct PreviewLight {
     direction_range: vec4<f32>,
     // rgb: intensity (W/sr; W/m² for directional).
     intensity: vec4<f32>,
-    // x, y: the spot cone's scale and offset.
+    // x, y: the spot cone's scale and offset; z: shadowmask channel
+    // (0-3; -1: none).
     cone: vec4<f32>,
 }
 
 // Irradiance / π at `p` (unit normal `n`) from the real-time lights,
 // unshadowed, with the bake's falloff (direct::punctual_incident): E for a
 // directional light; I / d² × KHR_lights_punctual's range window and cone
-// falloff for point and spot lights; times cos θ / π.
-fn realtime_light(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+// falloff for point and spot lights; times cos θ / π; a shadowmask
+// light's times its channel of `mask` (1 elsewhere: unshadowed).
+fn realtime_light(p: vec3<f32>, n: vec3<f32>, mask: vec4<f32>) -> vec3<f32> {
     var sum = vec3<f32>(0.0);
     for (var i = 0u; i < min(globals.light_count, 8u); i++) {
         let l = globals.lights[i];
@@ -70,6 +72,10 @@ fn realtime_light(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
                 atten *= a * a;
             }
             e = e * atten;
+        }
+        let channel = i32(round(l.cone.z));
+        if channel >= 0 && channel < 4 {
+            e = e * mask[channel];
         }
         sum += e * max(dot(n, to_light), 0.0) / 3.14159265358979;
     }

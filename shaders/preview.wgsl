@@ -20,6 +20,10 @@
 // The bake's debug map (`--debug-maps`): rgb patch colour, alpha 1 valid
 // texel, 0.5 invalid texel, 0 no texel (or no map: a transparent texel).
 @group(1) @binding(7) var debug_texture: texture_2d<f32>;
+// The bake's shadowmask page (linear RGBA: each channel one shadowmask
+// light's visibility), read with the lightmap's sampler; a white texel
+// where the page has none.
+@group(1) @binding(8) var shadowmask_texture: texture_2d<f32>;
 
 struct VertexIn {
     @location(0) position: vec3<f32>,
@@ -119,7 +123,13 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     }
     // The lights an engine draws in real time add their direct light,
     // unshadowed (the lightmap and probes hold only their bounces).
-    let realtime = realtime_light(in.world, normalize(in.normal));
+    // Shadowmask lights are masked by their channel (lightmapped surfaces
+    // only: probe-lit ones have no mask and draw them unshadowed).
+    var mask = vec4<f32>(1.0);
+    if has_lightmap {
+        mask = textureSampleLevel(shadowmask_texture, lightmap_sampler, atlas_uv, 0.0);
+    }
+    let realtime = realtime_light(in.world, normalize(in.normal), mask);
     var lit = base.rgb * (lightmap + realtime) + emissive;
     // An invalid probe's sphere: plain red radiance.
     if in.probe.w > 0.5 * (PROBE_LIT + PROBE_INVALID) {

@@ -117,7 +117,11 @@ fn mask_is_zero_in_the_umbra_and_one_outside() {
     let bake = radbake::bake(&scene, &config(), &Silent).unwrap();
     let mask = bake.shadowmask.as_ref().expect("a shadowmask");
     assert_eq!(mask.channel, [Some(0)]);
-    assert!(mask.fallback.is_empty() && bake.warnings.is_empty(), "{:?}", bake.warnings);
+    assert!(
+        mask.fallback.is_empty() && bake.warnings.is_empty(),
+        "{:?}",
+        bake.warnings
+    );
     assert!(mask.rays > 0);
 
     let w = 1.0 / 20.0;
@@ -210,7 +214,13 @@ fn sphere_light_mask_has_the_analytic_penumbra() {
 #[test]
 fn channels_are_limited_to_four_per_texel() {
     let lights: Vec<_> = (0..5)
-        .map(|k| ([k as f32 * 0.3 - 0.6, LIGHT_Y, 1.2], None, mode("shadowmask")))
+        .map(|k| {
+            (
+                [k as f32 * 0.3 - 0.6, LIGHT_Y, 1.2],
+                None,
+                mode("shadowmask"),
+            )
+        })
         .collect();
     let path = box_scene("mask-five", A, &lights);
     let scene = radbake::scene::load(&path, &Default::default()).unwrap();
@@ -241,13 +251,23 @@ fn channels_are_limited_to_four_per_texel() {
 
     let ground = 4.0;
     let apart: Vec<_> = (0..5)
-        .map(|k| ([k as f32 * 1.5 - 3.0, 0.5, 0.0], Some(1.0), mode("shadowmask")))
+        .map(|k| {
+            (
+                [k as f32 * 1.5 - 3.0, 0.5, 0.0],
+                Some(1.0),
+                mode("shadowmask"),
+            )
+        })
         .collect();
     let path = box_scene("mask-apart", ground, &apart);
     let scene = radbake::scene::load(&path, &Default::default()).unwrap();
     let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
     let mask = bake.shadowmask.as_ref().unwrap();
-    assert!(mask.channel.iter().all(Option::is_some), "{:?}", mask.channel);
+    assert!(
+        mask.channel.iter().all(Option::is_some),
+        "{:?}",
+        mask.channel
+    );
     assert!(mask.fallback.is_empty() && bake.warnings.is_empty());
     let used: std::collections::BTreeSet<_> = mask.channel.iter().flatten().collect();
     // A chain of overlaps (each light's reach on the ground is a disk of
@@ -279,14 +299,28 @@ fn cli_writes_the_shadowmask_files() {
     );
     let out = temp_dir("mask-cli-out");
     let status = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
-        .args(["bake", "-q", "--force", "--texels-per-meter", "10", "--probes", "off"])
+        .args([
+            "bake",
+            "-q",
+            "--force",
+            "--texels-per-meter",
+            "10",
+            "--probes",
+            "off",
+        ])
         .arg(&path)
         .arg("--out")
         .arg(&out)
         .output()
         .unwrap();
-    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
-    let png = image::open(out.join("shadowmask_0.png")).unwrap().to_rgba8();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let png = image::open(out.join("shadowmask_0.png"))
+        .unwrap()
+        .to_rgba8();
     let r: Vec<u8> = png.pixels().map(|p| p[0]).collect();
     assert!(r.contains(&0) && r.contains(&255));
     assert!(png.pixels().all(|p| p[1] == 0 && p[2] == 0 && p[3] == 0));
@@ -318,8 +352,14 @@ fn cli_writes_the_shadowmask_files() {
         .iter()
         .position(|n| n["name"] == "lamp0_node")
         .unwrap();
-    assert_eq!(doc["nodes"][lamp]["extras"]["radbake"]["mode"], "shadowmask");
-    assert_eq!(doc["nodes"][lamp]["extras"]["radbake"]["shadowmask_channel"], "r");
+    assert_eq!(
+        doc["nodes"][lamp]["extras"]["radbake"]["mode"],
+        "shadowmask"
+    );
+    assert_eq!(
+        doc["nodes"][lamp]["extras"]["radbake"]["shadowmask_channel"],
+        "r"
+    );
     let mut lightmapped = 0;
     for m in doc["materials"].as_array().unwrap() {
         if m["extensions"].get("MOZ_lightmap").is_none() {
@@ -340,4 +380,79 @@ fn cli_writes_the_shadowmask_files() {
 
 fn read_json(path: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// What the preview shows is what an engine would: the `shadowmask`
+/// light's bake, with the light's direct light drawn in real time × its
+/// channel of the mask, looks as the `baked` light's bake, in the box's
+/// umbra (the image's centre, under the box) and over the whole image.
+/// Skipped, saying why, without a graphics adapter.
+#[test]
+fn preview_masks_shadowmask_lights() {
+    let exe = env!("CARGO_BIN_EXE_radbake");
+    let dir = temp_dir("mask-preview");
+    let mut shots = Vec::new();
+    for m in ["baked", "shadowmask"] {
+        let scene = box_scene(
+            &format!("mask-preview-{m}"),
+            A,
+            &[([0.0, LIGHT_Y, 0.0], None, mode(m))],
+        );
+        let out = dir.join(m);
+        let bake = std::process::Command::new(exe)
+            .args([
+                "bake",
+                "-q",
+                "--force",
+                "--texels-per-meter",
+                "20",
+                "--probes",
+                "off",
+            ])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            bake.status.success(),
+            "{}",
+            String::from_utf8_lossy(&bake.stderr)
+        );
+        let png = dir.join(format!("{m}.png"));
+        let run = std::process::Command::new(exe)
+            .arg("preview")
+            .arg(out.join("box.baked.glb"))
+            .args(["--headless", "--out"])
+            .arg(&png)
+            .args(["--size", "96x64", "--tone-map", "none", "--exposure=1"])
+            .args(["--look-from=3,0.6,0.2", "--look-at=0,0,0"])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        if !run.status.success() && stderr.contains("no graphics adapter") {
+            eprintln!("SKIPPED (no GPU or software adapter on this machine): {stderr}");
+            return;
+        }
+        assert!(run.status.success(), "preview failed: {stderr}");
+        shots.push(image::open(&png).unwrap().to_rgba8());
+    }
+    let mean = |img: &image::RgbaImage| {
+        img.pixels()
+            .map(|p| common::srgb_to_linear(p[0]) as f64)
+            .sum::<f64>()
+            / (img.width() * img.height()) as f64
+    };
+    let (baked, masked) = (&shots[0], &shots[1]);
+    let (cb, cm) = (
+        common::centre_linear(baked).x,
+        common::centre_linear(masked).x,
+    );
+    let (mb, mm) = (mean(baked), mean(masked));
+    eprintln!("umbra (centre): baked {cb:.4}, shadowmask {cm:.4}; image mean: baked {mb:.4}, shadowmask {mm:.4}");
+    assert!(
+        cb > 0.0 && (cm / cb - 1.0).abs() < 0.05,
+        "umbra {cm} vs {cb}"
+    );
+    assert!((mm / mb - 1.0).abs() < 0.02, "mean {mm} vs {mb}");
 }

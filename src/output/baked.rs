@@ -183,7 +183,10 @@ fn light_modes(scene: &Scene, channel: Option<&[Option<u8>]>, doc: &mut Value) {
         };
         radbake.insert("mode".into(), json!(mode.name()));
         if let Some(c) = c {
-            radbake.insert("shadowmask_channel".into(), json!(CHANNEL_NAMES[c as usize]));
+            radbake.insert(
+                "shadowmask_channel".into(),
+                json!(CHANNEL_NAMES[c as usize]),
+            );
         }
     }
 }

@@ -56,11 +56,14 @@ pub fn png(mask: &Shadowmask, page: usize, name: &Path) -> Result<Vec<u8>> {
     )
     .expect("a page holds width × height texels");
     let mut bytes = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
-        .map_err(|e| Error::Encode {
-            path: name.to_path_buf(),
-            message: e.to_string(),
-        })?;
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::Encode {
+        path: name.to_path_buf(),
+        message: e.to_string(),
+    })?;
     Ok(bytes)
 }
 
@@ -79,7 +82,12 @@ pub struct Written {
 ///
 /// # Errors
 /// [`Error::Io`] / [`Error::Encode`].
-pub fn write(out_dir: &Path, mask: &Shadowmask, lights: &[Light], ktx2_on: bool) -> Result<Written> {
+pub fn write(
+    out_dir: &Path,
+    mask: &Shadowmask,
+    lights: &[Light],
+    ktx2_on: bool,
+) -> Result<Written> {
     let mut paths = Vec::new();
     let mut pages = Vec::new();
     let mut pngs = Vec::new();

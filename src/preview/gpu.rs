@@ -55,13 +55,14 @@ pub struct PreviewLight {
     /// rgb: intensity (W/sr; W/m² for directional); w unused.
     pub intensity: [f32; 4],
     /// x, y: the spot cone's scale and offset (KHR_lights_punctual's
-    /// falloff: (cos θ · scale + offset)², clamped); zw unused.
+    /// falloff: (cos θ · scale + offset)², clamped); z: the light's
+    /// shadowmask channel (0–3; −1: none, drawn unshadowed); w unused.
     pub cone: [f32; 4],
 }
 
 impl PreviewLight {
-    /// The preview's copy of `light`.
-    pub fn of(light: &crate::scene::Light) -> PreviewLight {
+    /// The preview's copy of `light`, with its shadowmask `channel`.
+    pub fn of(light: &crate::scene::Light, channel: Option<u8>) -> PreviewLight {
         use crate::scene::LightKind;
         let (kind, cone) = match light.kind {
             LightKind::Directional => (0.0, [0.0; 4]),
@@ -74,6 +75,8 @@ impl PreviewLight {
                 (2.0, [scale, -outer_cone_angle.cos() * scale, 0.0, 0.0])
             }
         };
+        let mut cone = cone;
+        cone[2] = channel.map_or(-1.0, f32::from);
         PreviewLight {
             position_kind: light.position.extend(kind).to_array(),
             direction_range: light
@@ -86,13 +89,19 @@ impl PreviewLight {
     }
 
     /// The lights of `scene` the engine draws in real time (every mode but
-    /// `baked`), at most [`MAX_LIGHTS`], and how many more there were.
-    pub fn realtime(scene: &crate::scene::Scene) -> (Vec<PreviewLight>, usize) {
+    /// `baked`), each with its shadowmask channel from `channels` (per
+    /// scene light; may be empty), at most [`MAX_LIGHTS`], and how many
+    /// more there were.
+    pub fn realtime(
+        scene: &crate::scene::Scene,
+        channels: &[Option<u8>],
+    ) -> (Vec<PreviewLight>, usize) {
         let all: Vec<PreviewLight> = scene
             .lights
             .iter()
-            .filter(|l| l.mode != crate::scene::LightMode::Baked)
-            .map(PreviewLight::of)
+            .enumerate()
+            .filter(|(_, l)| l.mode != crate::scene::LightMode::Baked)
+            .map(|(i, l)| PreviewLight::of(l, channels.get(i).copied().flatten()))
             .collect();
         let extra = all.len().saturating_sub(MAX_LIGHTS);
         (all.into_iter().take(MAX_LIGHTS).collect(), extra)

@@ -106,6 +106,11 @@ pub struct Model {
     /// Per page, the bake's `lightmap_<page>_debug.png` beside the `.glb`
     /// when it was written (`radbake bake --debug-maps`).
     pub debug_maps: Vec<Option<Image>>,
+    /// Per page, its shadowmask (linear RGBA8) where the `.glb` has one
+    /// (see [`parse_shadowmasks`]).
+    pub shadowmasks: Vec<Option<Image>>,
+    /// Per scene light ([`Scene::lights`]), its shadowmask channel (0–3).
+    pub light_channels: Vec<Option<u8>>,
     /// World bounds of all vertices (min, max; the probe spheres not included).
     pub bounds: (Vec3, Vec3),
     /// The bake's light probes (`probes.json` beside the `.glb`), if found.
@@ -161,6 +166,37 @@ pub fn parse_moz_lightmaps(
         }));
     }
     Ok((out, pages))
+}
+
+/// The shadowmask of a baked `.glb` (see `output::baked`): per lightmap
+/// page (`pages`, glTF texture indices), the texture that its materials'
+/// `extras.radbake.shadowmask.index` names, and per glTF node index the
+/// channel (0–3 for r, g, b, a) that their `channels` give its light.
+pub fn parse_shadowmasks(
+    json: &serde_json::Value,
+    moz: &[Option<LightmapRef>],
+    pages: usize,
+) -> (Vec<Option<usize>>, std::collections::BTreeMap<usize, u8>) {
+    let mut textures = vec![None; pages];
+    let mut channels = std::collections::BTreeMap::new();
+    let empty = Vec::new();
+    let materials = json["materials"].as_array().unwrap_or(&empty);
+    for (m, lm) in materials.iter().zip(moz) {
+        let (Some(lm), Some(sm)) = (lm, m.pointer("/extras/radbake/shadowmask")) else {
+            continue;
+        };
+        if let Some(t) = sm["index"].as_u64() {
+            textures[lm.page] = Some(t as usize);
+        }
+        for (c, name) in ["r", "g", "b", "a"].iter().enumerate() {
+            for node in sm["channels"][name].as_array().into_iter().flatten() {
+                if let Some(n) = node.as_u64() {
+                    channels.insert(n as usize, c as u8);
+                }
+            }
+        }
+    }
+    (textures, channels)
 }
 
 /// Decodes glTF texture `texture`'s image from the loaded document.
@@ -448,8 +484,23 @@ impl Model {
         } else {
             None
         };
+        let (mask_textures, channels) = match &scene.source {
+            Some(src) => parse_shadowmasks(&src.json, &moz, pages.len()),
+            None => Default::default(),
+        };
+        let shadowmasks = mask_textures
+            .iter()
+            .map(|t| t.map(|t| decode_texture(&scene, t)).transpose())
+            .collect::<Result<Vec<_>>>()?;
+        let light_channels = scene
+            .lights
+            .iter()
+            .map(|l| channels.get(&l.node_index).copied())
+            .collect();
         let mut model = Self::build(scene, &moz, lightmaps, probes);
         model.debug_maps = debug_maps;
+        model.shadowmasks = shadowmasks;
+        model.light_channels = light_channels;
         Ok(model)
     }
 
@@ -536,6 +587,8 @@ impl Model {
             lightmaps,
             bounds,
             debug_maps: Vec::new(),
+            shadowmasks: Vec::new(),
+            light_channels: Vec::new(),
             probes,
             probe_material,
         }

@@ -108,8 +108,8 @@ pub struct Renderer {
 
 /// The scene's lights that an engine draws in real time; a warning where
 /// there are more than the preview draws.
-fn realtime_lights(scene: &crate::scene::Scene) -> Vec<PreviewLight> {
-    let (lights, extra) = PreviewLight::realtime(scene);
+fn realtime_lights(scene: &crate::scene::Scene, channels: &[Option<u8>]) -> Vec<PreviewLight> {
+    let (lights, extra) = PreviewLight::realtime(scene, channels);
     if extra > 0 {
         eprintln!(
             "warning: the preview draws {} real-time lights; {extra} more are not drawn",
@@ -311,7 +311,7 @@ impl Renderer {
                 })
                 .collect(),
             probes: model.probes.clone().zip(model.probe_material),
-            lights: realtime_lights(&model.scene),
+            lights: realtime_lights(&model.scene, &model.light_channels),
             spheres: None,
             material_groups,
             double_sided: model.materials.iter().map(|m| m.double_sided).collect(),
@@ -593,7 +593,8 @@ pub fn read_back(
 }
 
 /// The bind group layouts: per frame (globals) and per material (its
-/// uniform, base colour, emissive, lightmap and debug map with samplers).
+/// uniform, base colour, emissive, lightmap and debug map with samplers,
+/// and the shadowmask, read with the lightmap's sampler).
 fn bind_group_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::BindGroupLayout) {
     let uniform = |binding, visibility| wgpu::BindGroupLayoutEntry {
         binding,
@@ -639,6 +640,7 @@ fn bind_group_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::Bi
             texture(5),
             sampler_entry(6),
             texture(7),
+            texture(8),
         ],
     });
     (globals_layout, material_layout)
@@ -737,6 +739,10 @@ struct Textures {
     no_debug: wgpu::TextureView,
     /// Debug maps (patches, validity; not colour data) per page.
     debug: Vec<Option<wgpu::TextureView>>,
+    /// Shadowmasks (linear visibility) per page; `white` where none.
+    shadowmasks: Vec<Option<wgpu::TextureView>>,
+    /// An unoccluded (linear white) texel for "no shadowmask".
+    no_mask: wgpu::TextureView,
 }
 
 impl Textures {
@@ -791,6 +797,25 @@ impl Textures {
                 })
             })
             .collect();
+        let linear = |name: &str, img: &super::model::Image| {
+            rgba8_texture(
+                device,
+                queue,
+                name,
+                (img.width, img.height),
+                &[&img.rgba],
+                false,
+            )
+            .create_view(&Default::default())
+        };
+        let shadowmasks = model
+            .shadowmasks
+            .iter()
+            .enumerate()
+            .map(|(i, m)| m.as_ref().map(|m| linear(&format!("shadowmask{i}"), m)))
+            .collect();
+        let no_mask = rgba8_texture(device, queue, "no shadowmask", (1, 1), &[&[255; 4]], false)
+            .create_view(&Default::default());
         Textures {
             white,
             clamp,
@@ -799,6 +824,8 @@ impl Textures {
             lightmaps,
             no_debug,
             debug,
+            shadowmasks,
+            no_mask,
         }
     }
 }
@@ -836,6 +863,11 @@ fn material_groups(
                 .and_then(|p| tx.debug.get(p))
                 .and_then(Option::as_ref)
                 .unwrap_or(&tx.no_debug);
+            let mask_view = m
+                .lightmap
+                .and_then(|p| tx.shadowmasks.get(p))
+                .and_then(Option::as_ref)
+                .unwrap_or(&tx.no_mask);
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(&format!("material{i}")),
                 layout: material_layout,
@@ -871,6 +903,10 @@ fn material_groups(
                     wgpu::BindGroupEntry {
                         binding: 7,
                         resource: wgpu::BindingResource::TextureView(debug_view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 8,
+                        resource: wgpu::BindingResource::TextureView(mask_view),
                     },
                 ],
             })

@@ -644,8 +644,11 @@ fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeEx
                     ctx.invalid(format!("{at}.cast_shadows"), "must be true or false")
                 })?);
             }
+            // Written by radbake on a baked file's shadowmask lights (the
+            // channel it assigned); a bake assigns channels afresh.
+            "shadowmask_channel" => {}
             other => out.unknown.push(format!(
-                "{at}: unknown key `{other}` ignored (known: angle, cast_shadows, dynamic, mode, probe_volume, radius, texel_scale)"
+                "{at}: unknown key `{other}` ignored (known: angle, cast_shadows, dynamic, mode, probe_volume, radius, shadowmask_channel, texel_scale)"
             )),
         }
     }

@@ -495,4 +495,3 @@ pub fn check_penumbra(bake: &radbake::Bake, fraction: impl Fn(usize) -> f64, r: 
     assert!((measured / analytic - 1.0).abs() < 0.10);
     (measured, analytic)
 }
-
