@@ -181,6 +181,16 @@ pub struct BakeConfig {
     pub direct_samples: u32,
     /// Uniform sky radiance (linear RGB, ≥ 0) seen by rays that leave the scene.
     pub sky: [f32; 3],
+    /// An equirectangular HDRI (`.exr` or `.hdr`, linear RGB) seen by rays
+    /// that leave the scene instead of `sky` (see [`crate::sky`]); None:
+    /// the uniform `sky`. A config file's relative path is relative to
+    /// the file.
+    pub sky_map: Option<std::path::PathBuf>,
+    /// Rotation of `sky_map` about +Y in degrees (counter-clockwise seen
+    /// from above).
+    pub sky_rotation: f32,
+    /// Scale of `sky_map`'s radiance (≥ 0).
+    pub sky_intensity: f32,
     /// How emissive surfaces are treated.
     pub emitters: EmitterSampling,
     /// Final-gather rays per texel (0: off, texels interpolate the patch solution).
@@ -350,6 +360,24 @@ impl Default for BakeConfig {
 }
 
 impl BakeConfig {
+    /// The sky that rays leaving the scene see: `sky_map` loaded (turned
+    /// by `sky_rotation`, scaled by `sky_intensity`), else the uniform
+    /// `sky`.
+    ///
+    /// # Errors
+    /// The map's one-line errors ([`crate::sky::SkyMap::load`]).
+    pub fn load_sky(&self) -> Result<crate::sky::Sky> {
+        use crate::sky::{Sky, SkyMap};
+        match &self.sky_map {
+            None => Ok(Sky::Uniform(glam::Vec3::from(self.sky))),
+            Some(path) => Ok(Sky::Map(std::sync::Arc::new(SkyMap::load(
+                path,
+                self.sky_rotation,
+                self.sky_intensity,
+            )?))),
+        }
+    }
+
     /// Balanced defaults: the Cornell box gets about 64×64 texels per wall.
     pub const fn medium() -> Self {
         BakeConfig {
@@ -373,6 +401,9 @@ impl BakeConfig {
             max_texels: 1 << 20,
             direct_samples: 64,
             sky: [0.0; 3],
+            sky_map: None,
+            sky_rotation: 0.0,
+            sky_intensity: 1.0,
             emitters: EmitterSampling::Auto,
             final_gather: 128,
             gather_threshold: 0.005,
@@ -535,6 +566,21 @@ impl BakeConfig {
         }
         if self.sky.iter().any(|v| !v.is_finite() || *v < 0.0) {
             return bad("sky", "must be three finite numbers ≥ 0");
+        }
+        if !self.sky_rotation.is_finite() {
+            return bad("sky_rotation", "must be a finite number of degrees");
+        }
+        if !self.sky_intensity.is_finite() || self.sky_intensity < 0.0 {
+            return bad("sky_intensity", "must be a finite number ≥ 0");
+        }
+        if self.sky_map.is_some() && self.sky != [0.0; 3] {
+            return bad("sky_map", "replaces the uniform sky: leave `sky` at 0,0,0");
+        }
+        if self.sky_map.is_some() && self.method == Method::Photon {
+            return bad(
+                "sky_map",
+                "photon mapping emits no photons from a sky map: use method = \"radiosity\" or \"pathtrace\"",
+            );
         }
         if self.method != Method::Radiosity
             && (self.ao_distance > 0.0 || self.directional != DirectionalMode::None)

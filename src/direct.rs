@@ -25,6 +25,7 @@ use crate::sampling::{
     cosine_hemisphere, offset_ray_origin, shadow_ray, stratified, to_world, Stream,
 };
 use crate::scene::{Light, LightKind, LightMode, Scene};
+use crate::sky::{Sky, SkyMap};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
@@ -40,15 +41,21 @@ pub struct Lights {
     pub cdf: Vec<f32>,
     /// Punctual lights.
     pub punctual: Vec<Light>,
-    /// Sky radiance seen by rays that leave the scene.
-    pub sky: Vec3,
+    /// What rays that leave the scene see: a uniform colour, or a sky map
+    /// (importance-sampled; see [`sky_light`]).
+    pub sky: Sky,
 }
 
 impl Lights {
     /// Collects the emissive triangles of `geometry` whose material is
     /// flagged in `sampled`, the scene's baked lights (every mode but
     /// [`LightMode::Realtime`]) and the sky.
-    pub fn new(scene: &Scene, geometry: &Geometry, sampled: &[bool], sky: Vec3) -> Lights {
+    pub fn new(
+        scene: &Scene,
+        geometry: &Geometry,
+        sampled: &[bool],
+        sky: impl Into<Sky>,
+    ) -> Lights {
         let mut l = Lights {
             punctual: scene
                 .lights
@@ -56,7 +63,7 @@ impl Lights {
                 .filter(|l| l.mode != LightMode::Realtime)
                 .cloned()
                 .collect(),
-            sky,
+            sky: sky.into(),
             ..Default::default()
         };
         let mut total = 0.0f32;
@@ -145,7 +152,7 @@ impl Lights {
 
     /// True when nothing emits.
     pub fn is_empty(&self) -> bool {
-        self.emitters.is_empty() && self.punctual.is_empty() && self.sky == Vec3::ZERO
+        self.emitters.is_empty() && self.punctual.is_empty() && self.sky.is_black()
     }
 }
 
@@ -362,10 +369,58 @@ impl Mis {
     }
 }
 
+/// The radiance a cosine-weighted ray from normal `n` that escapes along
+/// `dir` brings: a uniform sky's colour; a sky map's radiance times the
+/// hemisphere estimator's MIS weight against its light samples
+/// ([`sky_light`]; power heuristic with counts, as for the emitters).
+pub fn escaped(sky: &Sky, mis: Mis, n: Vec3, dir: Vec3) -> Vec3 {
+    match sky {
+        Sky::Uniform(c) => *c,
+        Sky::Map(m) => {
+            let p_b = n.dot(dir).max(0.0) / std::f32::consts::PI;
+            m.radiance(dir) * mis.hemisphere_weight(m.pdf(dir), p_b)
+        }
+    }
+}
+
+/// Light samples of a sky map from `points` (one each; point and normal),
+/// unit-square points a Hammersley set turned by `shift` and mapped
+/// through the map's luminance distribution ([`SkyMap::sample`]); each
+/// unoccluded one weighted by the light estimator's MIS weight against
+/// the cosine rays (see [`escaped`]). Returns irradiance / π (the mean
+/// over the points) and the shadow rays cast.
+pub fn sky_light(
+    rays: &RayCaster,
+    map: &SkyMap,
+    mis: Mis,
+    points: &[(Vec3, Vec3)],
+    shift: Vec2,
+) -> (Vec3, u64) {
+    let n = points.len() as u32;
+    let mut h = Vec3::ZERO;
+    let mut cast = 0;
+    for k in 0..n {
+        let (p, normal) = points[k as usize];
+        let (dir, pdf, l) = map.sample(hammersley(k, n, shift));
+        let cos = normal.dot(dir);
+        if pdf <= 0.0 || cos <= 0.0 {
+            continue;
+        }
+        cast += 1;
+        if !rays.unoccluded(offset_ray_origin(p, normal), dir, f32::INFINITY) {
+            continue;
+        }
+        let p_b = cos / std::f32::consts::PI;
+        // f / p_l · w_l with f = L cos θ / π.
+        h += l * (p_b / pdf) * (1.0 - mis.hemisphere_weight(pdf, p_b));
+    }
+    (if n > 0 { h / n as f32 } else { h }, cast)
+}
+
 /// What one cosine-weighted hemisphere ray from `p` (normal `n`) along
 /// `dir` brings to direct irradiance / π, before dividing by the rays cast:
-/// the sky if it escaped, a sampled emitter's radiance times its hemisphere
-/// MIS weight if it met one from the front, else nothing.
+/// the sky if it escaped ([`escaped`]), a sampled emitter's radiance times
+/// its hemisphere MIS weight if it met one from the front, else nothing.
 pub fn hemisphere_light(
     s: &Surfaces,
     lights: &Lights,
@@ -375,7 +430,7 @@ pub fn hemisphere_light(
 ) -> Vec3 {
     let g = s.geometry;
     match traced {
-        (Landing::Escaped, _) => lights.sky,
+        (Landing::Escaped, _) => escaped(&lights.sky, mis, n, dir),
         (Landing::Texel(_), Some(hit)) | (Landing::Unmapped, Some(hit)) => {
             let Some(k) = lights.emitter_index(hit.tri) else {
                 return Vec3::ZERO;
@@ -448,7 +503,7 @@ pub fn direct_at(
     }
 
     let has_emitters = !lights.emitters.is_empty();
-    if !has_emitters && lights.sky == Vec3::ZERO {
+    if !has_emitters && lights.sky.is_black() {
         return TexelDirect {
             light: h,
             mixed,
@@ -513,6 +568,13 @@ pub fn direct_at(
             // f / p_l · w_l / n_l with f = L cos_p / π.
             h += le * (p_b / p_l) * (1.0 - mis.hemisphere_weight(p_l, p_b)) / mis.light as f32;
         }
+    }
+    // A sky map's light samples (a uniform sky has only the cosine rays,
+    // its ideal sampling already).
+    if let Some(map) = lights.sky.map().filter(|m| !m.is_black()) {
+        let (sky, cast) = sky_light(s.rays, map, mis, points, rng.next_vec2());
+        h += sky;
+        rays += cast;
     }
     TexelDirect {
         light: h,

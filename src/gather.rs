@@ -176,12 +176,12 @@ pub struct Gathered {
 
 /// What the gather computes besides the indirect light, and its validity
 /// rule.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Extras {
     /// Accumulate the directional (L1) part; needs the sky radiance.
     pub directional: bool,
-    /// Sky radiance (for the directional part).
-    pub sky: Vec3,
+    /// The sky (its radiance, for the directional part).
+    pub sky: crate::sky::Sky,
     /// AO distance in metres (0: no AO).
     pub ao_distance: f32,
     /// The back-face tolerance of texel validity (`backface_tolerance`).
@@ -195,7 +195,7 @@ impl Default for Extras {
     fn default() -> Self {
         Extras {
             directional: false,
-            sky: Vec3::ZERO,
+            sky: crate::sky::Sky::default(),
             ao_distance: 0.0,
             backface_tolerance: BACKFACE_TOLERANCE,
             threshold: 0.0,
@@ -379,7 +379,7 @@ impl<'a> Gatherer<'a> {
     /// bake 3.8 % more instructions.
     #[inline(always)]
     fn texel(&self, t: usize, mut cast: impl FnMut(u32, Vec3, Vec3) -> Option<Hit>) -> TexelGather {
-        let (s, extras, rays) = (self.s, self.extras, self.rays);
+        let (s, extras, rays) = (self.s, &self.extras, self.rays);
         if s.burial.enclosed(t) {
             // Every ray of the validity estimate met a back face: the texel
             // is inside a solid; it receives nothing and is filled.
@@ -457,7 +457,7 @@ impl<'a> Gatherer<'a> {
                     seen = indirect + sampled;
                 }
                 (Landing::BackFace, _) => back += 1,
-                (Landing::Escaped, _) => seen = extras.sky,
+                (Landing::Escaped, _) => seen = extras.sky.radiance(dir),
                 _ => {}
             }
             if extras.directional {

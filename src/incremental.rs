@@ -22,6 +22,11 @@ pub fn content_hash(scene: &Scene, config: &BakeConfig) -> String {
     };
     field("version", env!("CARGO_PKG_VERSION").as_bytes());
     field("config", &serde_json::to_vec(config).unwrap_or_default());
+    // The sky map's bytes (a missing file hashes as nothing: the bake
+    // then fails on it, naming it).
+    if let Some(map) = &config.sky_map {
+        field("sky_map", &std::fs::read(map).unwrap_or_default());
+    }
     if let Some(src) = &scene.source {
         field("json", &serde_json::to_vec(&src.json).unwrap_or_default());
         for b in &src.buffers {

@@ -57,6 +57,7 @@ pub mod sampling;
 pub mod scene;
 pub mod seams;
 pub mod shadowmask;
+pub mod sky;
 pub mod solve;
 pub mod texels;
 pub mod trace;

@@ -104,7 +104,9 @@ pub fn trace_photons(tracer: &Tracer, count: u64, seed: u64) -> PhotonMap {
             sources.push((Source::Punctual(i), power));
         }
     }
-    let sky_power = 4.0 * PI * disc * lights.sky.element_sum();
+    // A uniform sky (`sky_map` is refused with photon mapping).
+    let sky = lights.sky.mean();
+    let sky_power = 4.0 * PI * disc * sky.element_sum();
     if sky_power > 0.0 {
         sources.push((Source::Sky, sky_power));
     }
@@ -197,7 +199,7 @@ pub fn trace_photons(tracer: &Tracer, count: u64, seed: u64) -> PhotonMap {
                         let phi = 2.0 * PI * v.y;
                         let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
                         let o = centre - d * (2.0 * radius) + disk_point(d, u) * radius;
-                        (o, d, lights.sky * (4.0 * PI * disc) / (p_source * n))
+                        (o, d, sky * (4.0 * PI * disc) / (p_source * n))
                     }
                 };
                 walk(tracer, origin, dir, flux, range, &mut rng, &mut out);
@@ -363,7 +365,7 @@ pub fn bake_texels(
     }
     // Direct light as the radiosity bake computes it (every emitter sampled).
     let all = vec![true; s.scene.materials.len()];
-    let lights = Lights::new(s.scene, s.geometry, &all, tracer.lights.sky);
+    let lights = Lights::new(s.scene, s.geometry, &all, tracer.lights.sky.clone());
     let n_direct = config.direct_samples;
     let mis = direct::Mis {
         light: n_direct,

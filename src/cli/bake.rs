@@ -72,6 +72,15 @@ pub struct BakeArgs {
     /// Sky radiance `r,g,b` (W·sr⁻¹·m⁻², linear) seen by rays leaving the scene [default: 0,0,0].
     #[arg(long, value_parser = parse_rgb)]
     pub sky: Option<[f32; 3]>,
+    /// Equirectangular HDRI (.exr or .hdr, linear RGB; row 0 the zenith, centre −X as in Blender) seen by rays leaving the scene, instead of --sky [default: none].
+    #[arg(long, value_name = "FILE")]
+    pub sky_map: Option<PathBuf>,
+    /// Turns the sky map about +Y, degrees counter-clockwise seen from above [default: 0].
+    #[arg(long, value_name = "DEGREES", allow_hyphen_values = true)]
+    pub sky_rotation: Option<f32>,
+    /// Scales the sky map's radiance [default: 1].
+    #[arg(long)]
+    pub sky_intensity: Option<f32>,
     /// Directional lightmaps: `sh` writes L1 spherical-harmonic pages [default: none].
     #[arg(long, value_enum)]
     pub directional: Option<DirectionalMode>,
@@ -211,7 +220,14 @@ impl BakeArgs {
             Some(path) => {
                 let text = std::fs::read_to_string(path)
                     .with_context(|| format!("cannot read config {}", path.display()))?;
-                BakeConfig::from_toml_over(&base, &text)?
+                let mut c = BakeConfig::from_toml_over(&base, &text)?;
+                // A config file's sky map is relative to the file.
+                if let (Some(map), Some(dir)) = (&mut c.sky_map, path.parent()) {
+                    if map.is_relative() {
+                        *map = dir.join(&*map);
+                    }
+                }
+                c
             }
             None => base,
         };
@@ -235,6 +251,8 @@ impl BakeArgs {
             max_texels,
             direct_samples,
             sky,
+            sky_rotation,
+            sky_intensity,
             emitters,
             final_gather,
             gather_threshold,
@@ -259,6 +277,9 @@ impl BakeArgs {
         );
         if self.debug_maps {
             c.debug_maps = true;
+        }
+        if let Some(map) = &self.sky_map {
+            c.sky_map = Some(map.clone());
         }
         for (name, mode) in &self.light_mode {
             c.light_modes.lights.insert(name.clone(), *mode);

@@ -62,12 +62,14 @@ pub fn run(args: &RenderArgs) -> Outcome {
             &unmapped
         }
     };
-    let sky = args
-        .sky
-        .or(baked.as_ref().map(|b| b.config.sky))
-        .unwrap_or([0.0; 3]);
+    // `--sky`, else the bake's sky (its map, if it had one), else black.
+    let sky = match (args.sky, &baked) {
+        (Some(c), _) => radbake::sky::Sky::Uniform(c.into()),
+        (None, Some(b)) => b.config.load_sky().map_err(lib_err)?,
+        (None, None) => radbake::sky::Sky::default(),
+    };
     let rays = radbake::raycast::RayCaster::new(&scene, geometry);
-    let mut tracer = radbake::trace::Tracer::new(&scene, geometry, &rays, sky.into());
+    let mut tracer = radbake::trace::Tracer::new(&scene, geometry, &rays, sky);
     if let Some(b) = &baked {
         tracer.lightmaps = Some(radbake::trace::LightmapLookup {
             width: b.width,

@@ -93,6 +93,8 @@ pub fn bake<'s>(
             ),
         });
     }
+    // The sky map is read (and refused) before any work is done.
+    let sky = config.load_sky()?;
     let mut log = Log::new(progress, input_warnings(scene));
 
     log.begin("unwrap", 0);
@@ -128,7 +130,7 @@ pub fn bake<'s>(
         rays: &rays,
         burial: &burial,
     };
-    let light = transport::run(&surfaces, &atlas, config, &mut log)?;
+    let light = transport::run(&surfaces, &atlas, config, &sky, &mut log)?;
 
     log.begin("lightmaps", 0);
     let maps = maps::build(&surfaces, atlas.page_count, &light, config);
@@ -144,6 +146,7 @@ pub fn bake<'s>(
             texel_values: &maps.lightmaps.texel_values,
             mixed: &light.mixed,
             specs: &scene.probe_volumes,
+            sky: &sky,
         };
         let p = probes::bake(&inputs, config, &|n| progress.advance(n));
         log.end("probes");

@@ -49,7 +49,13 @@ struct DirectLight {
 ///
 /// # Errors
 /// The direct solver refused (too many patches) or singular.
-pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> Result<TexelLight> {
+pub fn run(
+    s: &Surfaces,
+    atlas: &Atlas,
+    config: &BakeConfig,
+    sky: &crate::sky::Sky,
+    log: &mut Log,
+) -> Result<TexelLight> {
     check_direct_solver(config, s.patches.len())?;
     let progress = log.progress();
     let advance = |n| progress.advance(n);
@@ -68,7 +74,7 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
     log.end("form_factors");
 
     log.begin("direct", s.texels.len() as u64);
-    let mut direct = direct_light(s, config, &advance);
+    let mut direct = direct_light(s, config, sky, &advance);
     log.end("direct");
 
     let max_shots = config.max_iterations as u64 * s.patches.len() as u64;
@@ -148,7 +154,7 @@ pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> R
     log.end("validity");
 
     log.begin("final_gather", s.texels.len() as u64);
-    let gatherer = gatherer(s, &first, &direct, config);
+    let gatherer = gatherer(s, &first, &direct, config, sky);
     // Light samples towards the solved bright patches, picked by the rows
     // of F (so only with a stored matrix).
     let lights = match &patch_light.form_factors {
@@ -186,10 +192,11 @@ fn gatherer<'a>(
     first: &'a [Vec3],
     direct: &'a DirectLight,
     config: &BakeConfig,
+    sky: &crate::sky::Sky,
 ) -> Gatherer<'a> {
     let extras = Extras {
         directional: config.directional == config::DirectionalMode::Sh,
-        sky: Vec3::from(config.sky),
+        sky: sky.clone(),
         ao_distance: config.ao_distance,
         backface_tolerance: config.backface_tolerance,
         threshold: config.gather_threshold,
@@ -302,9 +309,14 @@ fn compute_form_factors(
 /// (sky, emitters by MIS) for the lightmap, so this pass casts only a
 /// quarter as many hemisphere rays, for the first pass H₁ that the solve
 /// and the gather's hits read (Sponza: 30 % fewer rays).
-fn direct_light(s: &Surfaces, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)) -> DirectLight {
+fn direct_light(
+    s: &Surfaces,
+    config: &BakeConfig,
+    sky: &crate::sky::Sky,
+    advance: &(dyn Fn(u64) + Sync),
+) -> DirectLight {
     let sampled = direct::sampled_materials(s.scene, s.geometry, config.emitters);
-    let lights = Lights::new(s.scene, s.geometry, &sampled, Vec3::from(config.sky));
+    let lights = Lights::new(s.scene, s.geometry, &sampled, sky.clone());
     let gathering = config.final_gather > 0 && config.final_gather >= config.direct_samples;
     let mis = Mis {
         light: config.direct_samples,

@@ -12,6 +12,7 @@ use crate::config::{BakeConfig, Method};
 use crate::direct::{self, Lights, Mis};
 use crate::error::{Error, Result};
 use crate::form_factors::raycast::Surfaces;
+use crate::sky::Sky;
 use crate::trace::{self, Tracer};
 use glam::Vec3;
 
@@ -19,10 +20,16 @@ use glam::Vec3;
 ///
 /// # Errors
 /// Radiosity's: a direct solve refused or singular.
-pub fn run(s: &Surfaces, atlas: &Atlas, config: &BakeConfig, log: &mut Log) -> Result<TexelLight> {
+pub fn run(
+    s: &Surfaces,
+    atlas: &Atlas,
+    config: &BakeConfig,
+    sky: &Sky,
+    log: &mut Log,
+) -> Result<TexelLight> {
     match config.method {
-        Method::Radiosity => radiosity::run(s, atlas, config, log),
-        Method::Pathtrace => Ok(pathtrace(s, config, log)),
+        Method::Radiosity => radiosity::run(s, atlas, config, sky, log),
+        Method::Pathtrace => Ok(pathtrace(s, config, sky, log)),
         Method::Photon => photon(s, config, log),
     }
 }
@@ -56,8 +63,8 @@ fn mixed_direct(s: &Surfaces, config: &BakeConfig) -> Vec<Vec3> {
 
 /// The path-traced reference: `path_samples` paths from points spread over
 /// each whole texel (every piece, by area).
-fn pathtrace(s: &Surfaces, config: &BakeConfig, log: &mut Log) -> TexelLight {
-    let mut tracer = Tracer::new(s.scene, s.geometry, s.rays, Vec3::from(config.sky));
+fn pathtrace(s: &Surfaces, config: &BakeConfig, sky: &Sky, log: &mut Log) -> TexelLight {
+    let mut tracer = Tracer::new(s.scene, s.geometry, s.rays, sky.clone());
     tracer.skip_mixed_direct = true;
     let progress = log.progress();
     log.begin("path_trace", s.texels.len() as u64);

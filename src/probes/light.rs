@@ -87,6 +87,37 @@ fn random_rotation(rng: &mut Stream) -> Quat {
     .normalize()
 }
 
+/// `sky_mis.light` samples of a sky map from probe `p` (a Hammersley set
+/// turned at random, through the map's luminance distribution), each
+/// unoccluded one added to `sh` with the light estimator's MIS weight
+/// against the sphere rays (power heuristic with counts). Returns the
+/// shadow rays cast.
+fn sky_samples(
+    s: &Surfaces,
+    map: &crate::sky::SkyMap,
+    p: Vec3,
+    sky_mis: Mis,
+    rng: &mut Stream,
+    sh: &mut Sh9,
+) -> u32 {
+    let ms = sky_mis.light;
+    let shift = rng.next_vec2();
+    let mut cast = 0;
+    for k in 0..ms {
+        let (dir, pdf, l) = map.sample(crate::direct::hammersley(k, ms, shift));
+        if pdf <= 0.0 {
+            continue;
+        }
+        cast += 1;
+        if s.rays.unoccluded(p, dir, f32::INFINITY) {
+            let p_b = 1.0 / (4.0 * std::f32::consts::PI);
+            let w = 1.0 - sky_mis.hemisphere_weight(pdf, p_b);
+            sh::add(sh, dir, l * w, 1.0 / (pdf * ms as f32));
+        }
+    }
+    cast
+}
+
 impl ProbeLight<'_> {
     /// The light at probe `index`, at world position `p`.
     pub fn probe(&self, index: usize, p: Vec3) -> ProbeSample {
@@ -104,18 +135,27 @@ impl ProbeLight<'_> {
             light: m,
             hemisphere: n,
         };
+        // A sky map is sampled too (as many samples as the emitters get).
+        let map = self.lights.sky.map().filter(|m| !m.is_black());
+        let sky_mis = Mis {
+            light: if map.is_some() { self.light_samples } else { 0 },
+            hemisphere: n,
+        };
         let w = 4.0 * std::f32::consts::PI / n as f32;
         let mut back = 0u32;
         let mut cast = 0u32;
         for i in 0..n {
             let d = turn * fibonacci(i, n);
             cast += 1;
-            let (l, backface) = self.along(p, d, mis);
+            let (l, backface) = self.along(p, d, mis, sky_mis);
             back += backface as u32;
             sh::add(&mut sh, d, l, w);
         }
         for k in 0..m {
             cast += self.light_sample(p, net.point(k), mis, &mut sh) as u32;
+        }
+        if let Some(map) = map {
+            cast += sky_samples(self.s, map, p, sky_mis, &mut rng, &mut sh);
         }
         // Mixed lights' direct light is the engine's to draw.
         for light in self.lights.punctual.iter().filter(|l| !l.mode.is_mixed()) {
@@ -144,12 +184,19 @@ impl ProbeLight<'_> {
 
     /// Radiance arriving at `p` from direction `d` (the sphere estimator's
     /// part: sampled emitters MIS-weighted), and whether a back face was met.
-    fn along(&self, p: Vec3, d: Vec3, mis: Mis) -> (Vec3, bool) {
+    fn along(&self, p: Vec3, d: Vec3, mis: Mis, sky_mis: Mis) -> (Vec3, bool) {
         let s = self.s;
         let g = s.geometry;
         let (landing, hit) = s.trace(p, d);
         let Some(hit) = hit else {
-            return (self.lights.sky, false);
+            let l = self.lights.sky.radiance(d);
+            let w = match self.lights.sky.map() {
+                Some(map) if sky_mis.light > 0 => {
+                    sky_mis.hemisphere_weight(map.pdf(d), 1.0 / (4.0 * std::f32::consts::PI))
+                }
+                _ => 1.0,
+            };
+            return (l * w, false);
         };
         if let Landing::BackFace = landing {
             return (Vec3::ZERO, true);

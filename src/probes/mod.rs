@@ -191,6 +191,8 @@ pub struct Inputs<'a> {
     /// The mixed lights' direct light per texel (irradiance / π; may be
     /// empty), which the lightmap leaves out but the surfaces reflect.
     pub mixed: &'a [Vec3],
+    /// What rays leaving the scene see.
+    pub sky: &'a crate::sky::Sky,
     /// The boxes the scene places (empty: one box over the scene).
     pub specs: &'a [VolumeSpec],
 }
@@ -208,7 +210,7 @@ pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)
         config.probe_budget,
     );
     let sampled = sampled_materials(s.scene, g, config.emitters);
-    let lights = Lights::new(s.scene, g, &sampled, Vec3::from(config.sky));
+    let lights = Lights::new(s.scene, g, &sampled, inputs.sky.clone());
     // What the surfaces reflect: the lightmap, plus the mixed lights'
     // direct light, which the lightmap leaves to the engine.
     let radiance = s

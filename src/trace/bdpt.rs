@@ -260,7 +260,7 @@ fn walk(
     while path.len() < max_vertices {
         let Some(hit) = tracer.rays.closest_hit(origin, dir, f32::INFINITY) else {
             if camera {
-                escaped = beta * tracer.lights.sky;
+                escaped = beta * tracer.lights.sky.radiance(dir);
             }
             break;
         };

@@ -100,8 +100,10 @@ pub(crate) enum Reach {
     /// The back of a one-sided surface (black, and a sign of a texel
     /// inside geometry when it is the first hit).
     Back,
-    /// The sky, with the chain's throughput.
-    Sky(Vec3),
+    /// The sky, with the chain's throughput, the direction it arrives
+    /// from (reversed) and whether the chain was empty (MIS with the sky
+    /// map's light samples applies).
+    Sky(Vec3, Vec3, bool),
     /// Nothing (path cut or absorbed).
     Nothing,
 }
@@ -131,7 +133,12 @@ pub struct Tracer<'a> {
 
 impl<'a> Tracer<'a> {
     /// A tracer over `geometry` whose every emissive triangle is a light.
-    pub fn new(scene: &'a Scene, geometry: &'a Geometry, rays: &'a RayCaster, sky: Vec3) -> Self {
+    pub fn new(
+        scene: &'a Scene,
+        geometry: &'a Geometry,
+        rays: &'a RayCaster,
+        sky: impl Into<crate::sky::Sky>,
+    ) -> Self {
         let all = vec![true; scene.materials.len()];
         Tracer {
             scene,
@@ -163,7 +170,7 @@ impl<'a> Tracer<'a> {
         let mut glow = Vec3::ZERO;
         for bounce in 0..=MAX_SPECULAR {
             let Some(hit) = self.rays.closest_hit(origin, dir, f32::INFINITY) else {
-                return (Reach::Sky(throughput), glow);
+                return (Reach::Sky(throughput, dir, bounce == 0), glow);
             };
             let tri = hit.tri as usize;
             let m = g.material[tri];
@@ -250,7 +257,18 @@ impl<'a> Tracer<'a> {
         let g = self.geometry;
         let (reach, glow) = self.reach(offset_ray_origin(p, n), dir, rng, Some((p, n)));
         let (l, back) = match reach {
-            Reach::Sky(t) => (t * self.lights.sky, false),
+            Reach::Sky(t, d, direct) => {
+                let l = self.lights.sky.radiance(d);
+                // Balance heuristic against the sky map's light sample.
+                let w = match (direct, self.lights.sky.map()) {
+                    (true, Some(map)) => {
+                        let p_b = n.dot(d) / std::f32::consts::PI;
+                        p_b / (p_b + map.pdf(d))
+                    }
+                    _ => 1.0,
+                };
+                (t * l * w, false)
+            }
             Reach::Back => (Vec3::ZERO, true),
             Reach::Nothing => (Vec3::ZERO, false),
             Reach::Diffuse(hit, t, direct) => {
@@ -348,6 +366,17 @@ impl<'a> Tracer<'a> {
             // Keep the stream's layout independent of the scene's emitters.
             rng.next_vec2();
         }
+        // A sky map's light sample, balance heuristic against the
+        // hemisphere sample (drawn only with a map: a uniform sky's stream
+        // is as it was).
+        if let Some(map) = self.lights.sky.map().filter(|m| !m.is_black()) {
+            let (dir, p_l, l) = map.sample(rng.next_vec2());
+            let cos_p = n.dot(dir);
+            if p_l > 0.0 && cos_p > 0.0 && self.rays.unoccluded(origin, dir, f32::INFINITY) {
+                let p_b = cos_p / pi;
+                h += l * (cos_p / pi) / (p_l + p_b);
+            }
+        }
         // Hemisphere sample: with pdf cos θ / π, L cos θ / (π pdf) = L.
         let dir = to_world(cosine_hemisphere(rng.next_vec2()), n);
         let (l, back) = self.gathered(p, n, dir, rng, depth + 1);
@@ -359,7 +388,7 @@ impl<'a> Tracer<'a> {
         let g = self.geometry;
         let (reach, glow) = self.reach(origin, dir, rng, None);
         glow + match reach {
-            Reach::Sky(t) => t * self.lights.sky,
+            Reach::Sky(t, d, _) => t * self.lights.sky.radiance(d),
             Reach::Back | Reach::Nothing => Vec3::ZERO,
             Reach::Diffuse(hit, t, _) => {
                 let m = g.material[hit.tri as usize];
