@@ -23,7 +23,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Bake lightmaps for a .gltf/.glb scene.
-    Bake(cli::bake::BakeArgs),
+    Bake(Box<cli::bake::BakeArgs>),
     /// Look at a baked .glb in a window (or render it offscreen with --headless).
     #[cfg(feature = "preview")]
     Preview(cli::preview::PreviewArgs),

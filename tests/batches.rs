@@ -50,7 +50,7 @@ fn batched_form_factors_and_gather_equal_the_cpu_path() {
     let sampled = radbake::direct::sampled_materials(&scene, &bake.geometry, config.emitters);
     let extras = Extras {
         directional: true,
-        sky: Vec3::new(0.2, 0.3, 0.4),
+        sky: Vec3::new(0.2, 0.3, 0.4).into(),
         ao_distance: 0.3,
         ..Extras::default()
     };

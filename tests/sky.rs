@@ -73,12 +73,12 @@ fn config(map: Option<&Path>) -> BakeConfig {
 /// ground's wholly covered texels.
 fn ground_stats(bake: &radbake::Bake, values: &[Vec3], want: f64) -> (f64, f64) {
     let (mut sum, mut area, mut worst) = (0.0f64, 0.0f64, 0.0f64);
-    for t in 0..bake.texels.len() {
-        let a = bake.texels.area[t] as f64;
+    for (v, &a) in values.iter().zip(&bake.texels.area) {
+        let a = a as f64;
         if a < 0.99 {
             continue;
         }
-        let v = values[t].x as f64;
+        let v = v.x as f64;
         sum += v * a;
         area += a;
         worst = worst.max((v / want - 1.0).abs());

@@ -45,7 +45,7 @@ fn final_gather(c: &mut Criterion) {
     };
     let extras = gather::Extras {
         directional: false,
-        sky: Vec3::from(bake.config.sky),
+        sky: Vec3::from(bake.config.sky).into(),
         ao_distance: 0.0,
         backface_tolerance: bake.config.backface_tolerance,
         threshold: 0.0,
@@ -61,7 +61,7 @@ fn final_gather(c: &mut Criterion) {
                 &sampled,
                 config.final_gather,
                 config.seed,
-                extras,
+                extras.clone(),
                 Some((&lights, mis)),
                 &|_| {},
             )
