@@ -352,6 +352,7 @@ mod tests {
                     node: format!("n{i}"),
                     texel_scale: 1.0,
                     cast_shadows: true,
+                    lightmap: true,
                     node_index: i,
                     mesh: 0,
                     world_from_local: Mat4::from_translation(Vec3::X * 3.0 * i as f32),
@@ -400,6 +401,7 @@ mod tests {
                     node: format!("n{i}"),
                     texel_scale: 1.0,
                     cast_shadows: true,
+                    lightmap: true,
                     node_index: i as usize,
                     mesh: 0,
                     world_from_local: Mat4::from_scale_rotation_translation(

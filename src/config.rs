@@ -191,6 +191,10 @@ pub struct BakeConfig {
     pub sky_rotation: f32,
     /// Scale of `sky_map`'s radiance (≥ 0).
     pub sky_intensity: f32,
+    /// Light samples of `sky_map` per texel and per probe (0–4096),
+    /// combined with the cosine (or sphere) rays by MIS: more is less
+    /// noise where the map has a bright spot, and a shadow ray each.
+    pub sky_samples: u32,
     /// How emissive surfaces are treated.
     pub emitters: EmitterSampling,
     /// Final-gather rays per texel (0: off, texels interpolate the patch solution).
@@ -404,6 +408,7 @@ impl BakeConfig {
             sky_map: None,
             sky_rotation: 0.0,
             sky_intensity: 1.0,
+            sky_samples: 16,
             emitters: EmitterSampling::Auto,
             final_gather: 128,
             gather_threshold: 0.005,
@@ -572,6 +577,9 @@ impl BakeConfig {
         }
         if !self.sky_intensity.is_finite() || self.sky_intensity < 0.0 {
             return bad("sky_intensity", "must be a finite number ≥ 0");
+        }
+        if self.sky_samples > 4096 {
+            return bad("sky_samples", "must be in 0..=4096");
         }
         if self.sky_map.is_some() && self.sky != [0.0; 3] {
             return bad("sky_map", "replaces the uniform sky: leave `sky` at 0,0,0");

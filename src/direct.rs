@@ -44,6 +44,9 @@ pub struct Lights {
     /// What rays that leave the scene see: a uniform colour, or a sky map
     /// (importance-sampled; see [`sky_light`]).
     pub sky: Sky,
+    /// A sky map's light samples per texel (or probe), for its MIS
+    /// weights ([`escaped`]); set by the caller (`config.sky_samples`).
+    pub sky_samples: u32,
 }
 
 impl Lights {
@@ -148,6 +151,15 @@ impl Lights {
     /// Probability of picking emitter `k` (index in [`Lights::emitters`]).
     pub fn pick(&self, k: usize) -> f32 {
         self.pick_probability(k)
+    }
+
+    /// The sky map's MIS counts: [`Lights::sky_samples`] light samples
+    /// against `mis`'s hemisphere rays.
+    pub fn sky_mis(&self, mis: Mis) -> Mis {
+        Mis {
+            light: self.sky_samples,
+            hemisphere: mis.hemisphere,
+        }
     }
 
     /// True when nothing emits.
@@ -373,12 +385,12 @@ impl Mis {
 /// `dir` brings: a uniform sky's colour; a sky map's radiance times the
 /// hemisphere estimator's MIS weight against its light samples
 /// ([`sky_light`]; power heuristic with counts, as for the emitters).
-pub fn escaped(sky: &Sky, mis: Mis, n: Vec3, dir: Vec3) -> Vec3 {
-    match sky {
+pub fn escaped(lights: &Lights, mis: Mis, n: Vec3, dir: Vec3) -> Vec3 {
+    match &lights.sky {
         Sky::Uniform(c) => *c,
         Sky::Map(m) => {
             let p_b = n.dot(dir).max(0.0) / std::f32::consts::PI;
-            m.radiance(dir) * mis.hemisphere_weight(m.pdf(dir), p_b)
+            m.radiance(dir) * lights.sky_mis(mis).hemisphere_weight(m.pdf(dir), p_b)
         }
     }
 }
@@ -430,7 +442,7 @@ pub fn hemisphere_light(
 ) -> Vec3 {
     let g = s.geometry;
     match traced {
-        (Landing::Escaped, _) => escaped(&lights.sky, mis, n, dir),
+        (Landing::Escaped, _) => escaped(lights, mis, n, dir),
         (Landing::Texel(_), Some(hit)) | (Landing::Unmapped, Some(hit)) => {
             let Some(k) = lights.emitter_index(hit.tri) else {
                 return Vec3::ZERO;
@@ -572,7 +584,14 @@ pub fn direct_at(
     // A sky map's light samples (a uniform sky has only the cosine rays,
     // its ideal sampling already).
     if let Some(map) = lights.sky.map().filter(|m| !m.is_black()) {
-        let (sky, cast) = sky_light(s.rays, map, mis, points, rng.next_vec2());
+        // `sky_samples` of the texel's stratified points, evenly strided.
+        let n = lights.sky_samples as usize;
+        let at: Vec<(Vec3, Vec3)> = if points.is_empty() {
+            Vec::new()
+        } else {
+            (0..n).map(|k| points[k * points.len() / n]).collect()
+        };
+        let (sky, cast) = sky_light(s.rays, map, lights.sky_mis(mis), &at, rng.next_vec2());
         h += sky;
         rays += cast;
     }

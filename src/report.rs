@@ -148,6 +148,9 @@ pub struct InstanceReport {
     pub texel_scale: f32,
     /// The node's `cast_shadows` (false: left out of the ray caster).
     pub cast_shadows: bool,
+    /// The node's `lightmap` (false: no lightmap for engines; its texels,
+    /// at a quarter of the density, carry its bounce only).
+    pub lightmap: bool,
     /// Atlas page.
     pub page: u32,
     /// Rectangle in the page, (min.x, min.y, max.x, max.y) in [0, 1] (Bevy's `uv_rect`).

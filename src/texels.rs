@@ -613,6 +613,7 @@ mod tests {
                     node: format!("n{i}"),
                     texel_scale: 1.0,
                     cast_shadows: true,
+                    lightmap: true,
                     node_index: i,
                     mesh: 0,
                     world_from_local: Mat4::from_translation(Vec3::Z * 5.0 * i as f32),

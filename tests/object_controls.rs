@@ -224,3 +224,136 @@ fn cast_shadows_false_leaves_a_node_out_of_the_rays() {
         "{err}"
     );
 }
+
+/// A grey ground and a white wall (x = 0.5, facing −X) under a sun from
+/// 45° over −X: the wall shades the ground behind it and bounces light
+/// onto the ground in front, the wall's node with `extras`.
+fn walled_ground(name: &str, extras: Value) -> PathBuf {
+    let mut b = GltfBuilder::default();
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let white = b.material([0.8; 3], [0.0; 3]);
+    let (p, i) = quad([-2.0, 0.0, -2.0], [0.0, 0.0, 4.0], [4.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("ground", m);
+    let (p, i) = quad([0.5, 0.0, -2.0], [0.0, 0.0, 4.0], [0.0, 2.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(white));
+    b.node("wall", m);
+    let mut doc = b.json();
+    doc["nodes"][1]["extras"] = extras;
+    let to_sun = glam::Vec3::new(-1.0, 1.0, 0.0).normalize();
+    let rot = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, -to_sun);
+    doc["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"name": "sun", "rotation": rot.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}));
+    doc["scenes"][0]["nodes"] = json!([0, 1, 2]);
+    doc["extensionsUsed"] = json!(["KHR_lights_punctual"]);
+    doc["extensions"] =
+        json!({"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 2.0}]}});
+    let path = temp_dir(name).join("wall.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+/// `lightmap: false` on the wall: it still shades the ground behind it
+/// and bounces light onto the ground in front as the lightmapped wall
+/// does (the ground's bounced light within 3 %; without the wall's
+/// rays, `cast_shadows: false`, there is none), with a sixteenth of
+/// the texels (a quarter of the density); the baked `.glb` gives it no
+/// `MOZ_lightmap`, and the manifest and report say `lightmap: false`.
+#[test]
+fn lightmap_false_still_shades_and_bounces() {
+    let cfg = BakeConfig {
+        texels_per_meter: 16.0,
+        probes: false,
+        ..BakeConfig::default()
+    };
+    let direct = 2.0 * std::f32::consts::FRAC_1_SQRT_2 / std::f32::consts::PI;
+    // Ground texels' mean in front of the wall (x < 0.4) less the sun's
+    // direct light, and behind it (x > 0.6).
+    let ground = |extras: Value, name: &str| {
+        let path = walled_ground(name, extras);
+        let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+        let bake = radbake::bake(&scene, &cfg, &Silent).unwrap();
+        let (mut front, mut nf, mut behind, mut nb) = (0.0f64, 0, 0.0f64, 0);
+        for t in 0..bake.texels.len() {
+            let p = bake.texels.p_ws[t];
+            if bake.texels.instance[t] != 0 {
+                continue;
+            }
+            let v = bake.transport.values[t].x as f64;
+            if p.x < 0.4 {
+                front += v - direct as f64;
+                nf += 1;
+            } else if p.x > 0.6 {
+                behind += v;
+                nb += 1;
+            }
+        }
+        let texels = bake.instance_reports()[1].texels;
+        (front / nf as f64, behind / nb as f64, texels)
+    };
+    let (bounce_on, behind_on, texels_on) = ground(json!(null), "lm-on");
+    let (bounce_off, behind_off, texels_off) =
+        ground(json!({"radbake": {"lightmap": false}}), "lm-off");
+    let (bounce_none, _, _) = ground(json!({"radbake": {"cast_shadows": false}}), "lm-none");
+    eprintln!(
+        "bounce in front: lightmapped {bounce_on:.5}, lightmap false {bounce_off:.5}, no wall {bounce_none:.5}; \
+         behind: {behind_on:.5}, {behind_off:.5}; wall texels {texels_on} vs {texels_off}"
+    );
+    assert!(bounce_on > 0.02 && bounce_none.abs() < 1e-4);
+    assert!((bounce_off / bounce_on - 1.0).abs() < 0.03);
+    assert!(behind_off < 0.1 * direct as f64 && behind_on < 0.1 * direct as f64);
+    let ratio = texels_on as f64 / texels_off as f64;
+    assert!((12.0..=20.0).contains(&ratio), "texel ratio {ratio}");
+
+    // The files.
+    let path = walled_ground("lm-cli", json!({"radbake": {"lightmap": false}}));
+    let out = temp_dir("lm-cli-out");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args([
+            "bake",
+            "-q",
+            "--force",
+            "--texels-per-meter",
+            "8",
+            "--probes",
+            "off",
+        ])
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let read = |f: &str| -> Value {
+        serde_json::from_slice(&std::fs::read(out.join(f)).unwrap()).unwrap()
+    };
+    let manifest = read("manifest.json");
+    assert_eq!(manifest["instances"][0]["lightmap"], true);
+    assert_eq!(manifest["instances"][1]["lightmap"], false);
+    assert_eq!(read("report.json")["instances"][1]["lightmap"], false);
+    let glb = std::fs::read(out.join("wall.baked.glb")).unwrap();
+    let len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let doc: Value = serde_json::from_slice(&glb[20..20 + len]).unwrap();
+    let lightmapped = |node: usize| {
+        let mesh = doc["nodes"][node]["mesh"].as_u64().unwrap() as usize;
+        doc["meshes"][mesh]["primitives"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|p| {
+                let m = p["material"].as_u64().unwrap() as usize;
+                doc["materials"][m]["extensions"]
+                    .get("MOZ_lightmap")
+                    .is_some()
+            })
+    };
+    assert!(lightmapped(0));
+    assert!(!lightmapped(1));
+    assert_eq!(doc["nodes"][1]["extras"]["radbake"]["lightmap"], false);
+}

@@ -81,6 +81,9 @@ pub struct BakeArgs {
     /// Scales the sky map's radiance [default: 1].
     #[arg(long)]
     pub sky_intensity: Option<f32>,
+    /// Sky-map light samples per texel and per probe, combined with the cosine rays by MIS [default: 16].
+    #[arg(long)]
+    pub sky_samples: Option<u32>,
     /// Directional lightmaps: `sh` writes L1 spherical-harmonic pages [default: none].
     #[arg(long, value_enum)]
     pub directional: Option<DirectionalMode>,
@@ -253,6 +256,7 @@ impl BakeArgs {
             sky,
             sky_rotation,
             sky_intensity,
+            sky_samples,
             emitters,
             final_gather,
             gather_threshold,

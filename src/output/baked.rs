@@ -593,7 +593,11 @@ fn lightmapped_instances(
     pages: &PageTextures,
 ) {
     let mut first_use: HashMap<usize, bool> = HashMap::new();
+    let pristine = doc["meshes"].clone();
     for (i, inst) in scene.instances.iter().enumerate() {
+        if !inst.lightmap {
+            continue;
+        }
         let mesh = &scene.meshes[inst.mesh as usize];
         let gm = mesh.gltf_index;
         let rect = atlas.instances[i];
@@ -640,6 +644,17 @@ fn lightmapped_instances(
             gm
         } else {
             push(doc, "meshes", mesh_json)
+        };
+        doc["nodes"][inst.node_index]["mesh"] = json!(index);
+    }
+    // Nodes without a lightmap keep their mesh as it came, or a copy of it
+    // where a lightmapped node re-indexed it.
+    for inst in scene.instances.iter().filter(|i| !i.lightmap) {
+        let gm = scene.meshes[inst.mesh as usize].gltf_index;
+        let index = if first_use.insert(gm, true).is_none() {
+            gm
+        } else {
+            push(doc, "meshes", pristine[gm].clone())
         };
         doc["nodes"][inst.node_index]["mesh"] = json!(index);
     }

@@ -407,6 +407,7 @@ pub fn write_engine_outputs(
                 "uv_rect": [r.min[0], r.min[1], r.max[0], r.max[1]],
                 "png_scale": scale_of(i),
                 "moz_lightmap_intensity": std::f32::consts::PI * scale_of(i),
+                "lightmap": inst.lightmap,
             })
         })
         .collect();

@@ -316,7 +316,8 @@ fn direct_light(
     advance: &(dyn Fn(u64) + Sync),
 ) -> DirectLight {
     let sampled = direct::sampled_materials(s.scene, s.geometry, config.emitters);
-    let lights = Lights::new(s.scene, s.geometry, &sampled, sky.clone());
+    let mut lights = Lights::new(s.scene, s.geometry, &sampled, sky.clone());
+    lights.sky_samples = config.sky_samples;
     let gathering = config.final_gather > 0 && config.final_gather >= config.direct_samples;
     let mis = Mis {
         light: config.direct_samples,

@@ -62,6 +62,7 @@ impl Bake<'_> {
                     lightmap_mean: mean(&sums.lightmap),
                     texel_scale: inst.texel_scale,
                     cast_shadows: inst.cast_shadows,
+                    lightmap: inst.lightmap,
                     page: r.page,
                     uv_rect: [r.min[0], r.min[1], r.max[0], r.max[1]],
                 }

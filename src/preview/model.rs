@@ -540,7 +540,13 @@ impl Model {
             blended: Vec::new(),
         };
         for inst in &scene.instances {
-            let light = Light::Lightmap(&borders[inst.mesh as usize]);
+            // A node without a lightmap (`extras.radbake.lightmap: false`)
+            // is lit by the probes, as a dynamic one.
+            let light = if inst.lightmap {
+                Light::Lightmap(&borders[inst.mesh as usize])
+            } else {
+                Light::Probes(probes.as_ref())
+            };
             push_instance(&mut gathered, &scene, inst, light, &blend);
         }
         for inst in &scene.dynamic {

@@ -135,10 +135,14 @@ impl ProbeLight<'_> {
             light: m,
             hemisphere: n,
         };
-        // A sky map is sampled too (as many samples as the emitters get).
+        // A sky map is sampled too (`sky_samples` per probe).
         let map = self.lights.sky.map().filter(|m| !m.is_black());
         let sky_mis = Mis {
-            light: if map.is_some() { self.light_samples } else { 0 },
+            light: if map.is_some() {
+                self.lights.sky_samples
+            } else {
+                0
+            },
             hemisphere: n,
         };
         let w = 4.0 * std::f32::consts::PI / n as f32;

@@ -210,7 +210,8 @@ pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)
         config.probe_budget,
     );
     let sampled = sampled_materials(s.scene, g, config.emitters);
-    let lights = Lights::new(s.scene, g, &sampled, inputs.sky.clone());
+    let mut lights = Lights::new(s.scene, g, &sampled, inputs.sky.clone());
+    lights.sky_samples = config.sky_samples;
     // What the surfaces reflect: the lightmap, plus the mixed lights'
     // direct light, which the lightmap leaves to the engine.
     let radiance = s

@@ -430,12 +430,20 @@ fn import_nodes(
                         node_index: node.index(),
                         mesh: mesh_index,
                         world_from_local: world,
-                        // The node's, else its mesh's, else the bake's.
+                        // The node's, else its mesh's, else the bake's; a
+                        // quarter of it without a lightmap (see
+                        // [`super::LIGHTMAPLESS_SCALE`]).
                         texel_scale: extras
                             .texel_scale
                             .or(scene.meshes[mesh_index as usize].texel_scale)
-                            .unwrap_or(1.0),
+                            .unwrap_or(1.0)
+                            * if extras.lightmap == Some(false) {
+                                super::LIGHTMAPLESS_SCALE
+                            } else {
+                                1.0
+                            },
                         cast_shadows: extras.cast_shadows.unwrap_or(true),
+                        lightmap: extras.lightmap.unwrap_or(true),
                     };
                     if extras.dynamic {
                         scene.dynamic.push(instance);
@@ -571,6 +579,8 @@ struct NodeExtras {
     texel_scale: Option<f32>,
     /// `cast_shadows`: false leaves the node out of the ray caster.
     cast_shadows: Option<bool>,
+    /// `lightmap`: false gives the node no lightmap (lit by probes).
+    lightmap: Option<bool>,
     /// Keys this version does not know (warned about).
     unknown: Vec<String>,
 }
@@ -644,11 +654,16 @@ fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeEx
                     ctx.invalid(format!("{at}.cast_shadows"), "must be true or false")
                 })?);
             }
+            "lightmap" => {
+                out.lightmap = Some(v.as_bool().ok_or_else(|| {
+                    ctx.invalid(format!("{at}.lightmap"), "must be true or false")
+                })?);
+            }
             // Written by radbake on a baked file's shadowmask lights (the
             // channel it assigned); a bake assigns channels afresh.
             "shadowmask_channel" => {}
             other => out.unknown.push(format!(
-                "{at}: unknown key `{other}` ignored (known: angle, cast_shadows, dynamic, mode, probe_volume, radius, shadowmask_channel, texel_scale)"
+                "{at}: unknown key `{other}` ignored (known: angle, cast_shadows, dynamic, lightmap, mode, probe_volume, radius, shadowmask_channel, texel_scale)"
             )),
         }
     }

@@ -45,6 +45,10 @@ pub struct Mesh {
     pub vertex_source: Vec<u32>,
 }
 
+/// The density of a node with `extras.radbake.lightmap: false` over its
+/// `texel_scale`: its texels only carry its light for the bounces.
+pub const LIGHTMAPLESS_SCALE: f32 = 0.25;
+
 /// One placement of a mesh by a node: each instance gets its own lightmap
 /// rectangle.
 #[derive(Clone, Debug)]
@@ -64,6 +68,13 @@ pub struct Instance {
     /// leaves it out of the ray caster, so it neither blocks nor reflects
     /// light for anything else, and receives light in its own texels.
     pub cast_shadows: bool,
+    /// The node's `extras.radbake.lightmap` (default true): false gives it
+    /// no lightmap an engine reads (no `MOZ_lightmap`, `lightmap: false`
+    /// in the manifest; engines light it by the probes). It still casts
+    /// shadows and bounces light: its texels, at
+    /// [`LIGHTMAPLESS_SCALE`] × its density (folded into `texel_scale`),
+    /// carry its light for the bounces only.
+    pub lightmap: bool,
 }
 
 impl Instance {

@@ -161,6 +161,15 @@ pub struct Instance {
     /// (min.x, min.y, max.x, max.y) in [0, 1], min = top-left: Bevy's
     /// `Lightmap::uv_rect`.
     pub uv_rect: [f32; 4],
+    /// False for a node baked without a lightmap (`extras.radbake.lightmap:
+    /// false`): it gets no `Lightmap`, and Bevy lights it by the
+    /// irradiance volume.
+    #[serde(default = "yes")]
+    pub lightmap: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// One probe grid, as a Bevy irradiance volume.
@@ -393,7 +402,7 @@ fn apply_bakes(
         }
         let mut applied = RadbakeApplied::default();
         let mut exposed = HashSet::new();
-        for inst in &manifest.instances {
+        for inst in manifest.instances.iter().filter(|i| i.lightmap) {
             let handles = instance_meshes(gltf, &gltf_nodes, &gltf_meshes, inst.node_index);
             let entities: Vec<Entity> = handles
                 .iter()
