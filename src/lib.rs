@@ -55,6 +55,7 @@ pub mod raycast;
 pub mod report;
 pub mod sampling;
 pub mod scene;
+pub mod sdf;
 pub mod seams;
 pub mod shadowmask;
 pub mod sky;

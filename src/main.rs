@@ -33,6 +33,8 @@ enum Command {
     Measure(cli::measure::MeasureArgs),
     /// Look at a bake in a browser: the three.js viewer and the bake's files on 127.0.0.1.
     Serve(cli::serve::ServeArgs),
+    /// Bake the scene's signed distance field (a KTX2 3D texture, metres).
+    Sdf(cli::sdf::SdfArgs),
 }
 
 fn main() -> ExitCode {
@@ -62,6 +64,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => cli::bake::run(args),
         Command::Render(args) => cli::render::run(args),
         Command::Measure(args) => cli::measure::run(args),
+        Command::Sdf(args) => cli::sdf::run(args),
         Command::Serve(args) => cli::serve::run(args),
         #[cfg(feature = "preview")]
         Command::Preview(args) => cli::preview::run(args),

@@ -11,6 +11,7 @@ pub mod measure;
 pub mod preview;
 pub mod progress;
 pub mod render;
+pub mod sdf;
 pub mod serve;
 
 use clap::Args;

@@ -14,6 +14,8 @@ const VK_FORMAT_E5B9G9R9_UFLOAT_PACK32: u32 = 123;
 const VK_FORMAT_R16G16B16A16_SFLOAT: u32 = 97;
 /// `VK_FORMAT_BC6H_UFLOAT_BLOCK`.
 const VK_FORMAT_BC6H_UFLOAT_BLOCK: u32 = 143;
+/// `VK_FORMAT_R32_SFLOAT`.
+const VK_FORMAT_R32_SFLOAT: u32 = 100;
 /// `VK_FORMAT_R8G8B8A8_UNORM`.
 const VK_FORMAT_R8G8B8A8_UNORM: u32 = 37;
 
@@ -147,6 +149,20 @@ pub fn ktx2_rgba16f_zstd(width: u32, height: u32, texels: &[Vec3], level: i32) -
         &raw,
         Some(level),
     )
+}
+
+/// A KTX2 file of `size` (width, height, depth; depth 0 for 2D) single
+/// float texels (x fastest) in `R32_SFLOAT`, Zstandard supercompressed at
+/// `level`: the signed distance field. The data format descriptor is
+/// Khronos's basic one: RGBSDA, BT.709, linear, one 32-bit sample, FLOAT |
+/// SIGNED, lower −1.0, upper 1.0.
+pub fn ktx2_r32f_zstd(size: [u32; 3], texels: &[f32], level: i32) -> Vec<u8> {
+    let n: usize = size.iter().map(|&d| d.max(1) as usize).product();
+    assert_eq!(texels.len(), n);
+    let raw: Vec<u8> = texels.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let mut dfd = vec![1 | 1 << 8 | 1 << 16, 0, 4, 0];
+    dfd.extend([31 << 16 | 0xC0 << 24, 0, 0xBF80_0000, 0x3F80_0000]);
+    file(VK_FORMAT_R32_SFLOAT, 4, size, &dfd, &raw, Some(level))
 }
 
 /// A 2D KTX2 file of `width` × `height` linear RGBA8 texels (row by row)

@@ -7,6 +7,7 @@ pub mod baked;
 pub mod ktx2;
 pub mod png8;
 pub mod probes;
+pub mod sdf;
 pub mod shadowmask;
 
 use crate::error::{Error, Result};

@@ -838,6 +838,118 @@ where
     }
 }
 
+impl<const W: usize> Bvh<W> {
+    /// The triangle nearest to `p` within distance √`max_d2`: (lane id,
+    /// squared distance, nearest point). Best-first over the children's
+    /// boxes (squared distance from `p` to each box), nearest pushed last
+    /// so it is taken first; a subtree whose box lies beyond the best
+    /// distance so far is skipped. Per triangle, the closest point of
+    /// Ericson, *Real-Time Collision Detection* §5.1.5. Of triangles at
+    /// one distance the lowest id wins, so the answer does not depend on
+    /// the visit order. Alpha cut-outs are not consulted: a masked
+    /// triangle counts whole.
+    pub(crate) fn closest_point(&self, p: Vec3, max_d2: f32) -> Option<(u32, f32, Vec3)> {
+        if self.root == EMPTY {
+            return None;
+        }
+        let mut best: Option<(u32, f32, Vec3)> = None;
+        let mut limit = max_d2;
+        let mut stack: Vec<(u32, f32)> = Vec::with_capacity(self.stack_needed.max(8));
+        stack.push((self.root, 0.0));
+        while let Some((r, d2)) = stack.pop() {
+            if d2 > limit {
+                continue;
+            }
+            if r & LEAF != 0 {
+                let first = (r & ((1 << COUNT_SHIFT) - 1)) as usize;
+                let count = (((r & !LEAF) >> COUNT_SHIFT) + 1) as usize;
+                for packet in &self.packets[first..first + count] {
+                    for k in 0..4 {
+                        if packet.id[k] == u32::MAX {
+                            continue;
+                        }
+                        let id = packet.id[k] & !MASKED;
+                        let v0 = Vec3::new(packet.v0[0][k], packet.v0[1][k], packet.v0[2][k]);
+                        let e1 = Vec3::new(packet.e1[0][k], packet.e1[1][k], packet.e1[2][k]);
+                        let e2 = Vec3::new(packet.e2[0][k], packet.e2[1][k], packet.e2[2][k]);
+                        let q = closest_on_triangle(p, v0, v0 - e1, v0 + e2);
+                        let dq = (q - p).length_squared();
+                        let better = dq < limit || (dq == limit && best.is_some_and(|b| id < b.0));
+                        if better {
+                            limit = dq;
+                            best = Some((id, dq, q));
+                        }
+                    }
+                }
+                continue;
+            }
+            let node = &self.nodes[r as usize];
+            let mut children: [(u32, f32); W] = [(EMPTY, 0.0); W];
+            let mut n = 0;
+            for c in 0..W {
+                if node.child[c] == EMPTY {
+                    continue;
+                }
+                let mut dc = 0.0f32;
+                for axis in 0..3 {
+                    let (lo, hi) = (node.b[axis][c], node.b[axis + 3][c]);
+                    let x = p[axis];
+                    let d = if x < lo {
+                        lo - x
+                    } else if x > hi {
+                        x - hi
+                    } else {
+                        0.0
+                    };
+                    dc += d * d;
+                }
+                if dc <= limit {
+                    children[n] = (node.child[c], dc);
+                    n += 1;
+                }
+            }
+            // Farthest first onto the stack, so the nearest is popped next.
+            children[..n].sort_by(|a, b| b.1.total_cmp(&a.1));
+            stack.extend_from_slice(&children[..n]);
+        }
+        best
+    }
+}
+
+/// The point of triangle (a, b, c) nearest to `p` (Ericson 2005, §5.1.5:
+/// the Voronoi regions of the vertices, then of the edges, then the face).
+pub(crate) fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
+
 /// What a traversal does at a leaf packet (a trait rather than a closure,
 /// so that the packet test is always inlined into the traversal loop).
 trait Visitor {

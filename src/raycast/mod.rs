@@ -284,6 +284,18 @@ impl RayCaster {
         }
     }
 
+    /// The triangle nearest to `p` within √`max_dist2`: (global triangle id,
+    /// distance, nearest point). One best-first traversal of the BVH (see
+    /// `bvh::Bvh::closest_point`); alpha cut-outs are not consulted.
+    pub fn closest_point(&self, p: Vec3, max_dist2: f32) -> Option<(u32, f32, Vec3)> {
+        match &self.bvh {
+            Accel::Four(b) => b.closest_point(p, max_dist2),
+            #[cfg(target_arch = "x86_64")]
+            Accel::Eight(b) => b.closest_point(p, max_dist2),
+        }
+        .map(|(k, d2, q)| (self.ids[k as usize], d2.sqrt(), q))
+    }
+
     /// Children per BVH node: 4 or 8.
     pub fn width(&self) -> usize {
         match &self.bvh {
