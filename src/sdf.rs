@@ -109,6 +109,38 @@ pub struct Sdf {
 }
 
 impl Sdf {
+    /// Sign flips in open air: pairs of neighbouring voxels, both more
+    /// than `clear` voxels from any surface, whose signs differ. The field
+    /// changes sign only across a surface, so a field of closed solids
+    /// has none (returns the flips and the pairs counted).
+    pub fn open_air_flips(&self, clear: f32) -> (u64, u64) {
+        let [nx, ny, nz] = self.grid.dims.map(|d| d as usize);
+        let far = clear * self.grid.voxel;
+        let d = &self.distance;
+        let (mut flips, mut pairs) = (0u64, 0u64);
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let i = x + nx * (y + ny * z);
+                    if d[i].abs() <= far {
+                        continue;
+                    }
+                    for (ok, j) in [
+                        (x + 1 < nx, i + 1),
+                        (y + 1 < ny, i + nx),
+                        (z + 1 < nz, i + nx * ny),
+                    ] {
+                        if ok && d[j].abs() > far {
+                            pairs += 1;
+                            flips += ((d[i] < 0.0) != (d[j] < 0.0)) as u64;
+                        }
+                    }
+                }
+            }
+        }
+        (flips, pairs)
+    }
+
     /// The field at world point `p`, trilinear between voxel centres
     /// (clamped at the grid's border).
     pub fn sample(&self, p: Vec3) -> f32 {

@@ -82,6 +82,12 @@ pub fn run(args: &SdfArgs) -> Outcome {
             sdf.rays,
             start.elapsed().as_secs_f64()
         );
+        let (flips, pairs) = sdf.open_air_flips(2.0);
+        let inside = sdf.distance.iter().filter(|d| **d < 0.0).count();
+        eprintln!(
+            "sdf: {inside} voxels inside solids ({:.1} %); {flips} sign flips among {pairs} neighbour pairs more than 2 voxels from any surface",
+            100.0 * inside as f64 / n
+        );
         for f in files {
             eprintln!("wrote {}", f.display());
         }
