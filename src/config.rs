@@ -230,6 +230,10 @@ pub struct BakeConfig {
     pub probe_budget: u32,
     /// Rays per probe (a spherical Fibonacci set).
     pub probe_rays: u32,
+    /// Also bake the signed distance field (`sdf.ktx2`, see [`crate::sdf`])
+    /// with this many voxels along the scene's longest side (0: none;
+    /// at most 2048).
+    pub sdf: u32,
     /// Directional lightmaps (needs the final gather).
     pub directional: DirectionalMode,
     /// Ambient-occlusion distance in metres (0: no AO map; needs the final gather).
@@ -422,6 +426,7 @@ impl BakeConfig {
             probe_spacing: 1.0,
             probe_budget: 16_384,
             probe_rays: 256,
+            sdf: 0,
             directional: DirectionalMode::None,
             ao_distance: 0.0,
             supersample: 1,
@@ -577,6 +582,9 @@ impl BakeConfig {
         }
         if !self.sky_intensity.is_finite() || self.sky_intensity < 0.0 {
             return bad("sky_intensity", "must be a finite number ≥ 0");
+        }
+        if self.sdf > 2048 {
+            return bad("sdf", "must be in 0..=2048 voxels along the longest side");
         }
         if self.sky_samples > 4096 {
             return bad("sky_samples", "must be in 0..=4096");

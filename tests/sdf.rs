@@ -292,3 +292,73 @@ fn deterministic_and_written() {
     );
     assert!(stderr.contains("--voxel-size"), "{stderr}");
 }
+
+/// `radbake bake --sdf 24` writes `sdf.ktx2` and the manifest's `sdf`
+/// entry: the same field as `radbake sdf --resolution 24` (within float
+/// rounding: the bake's triangles come through its atlas).
+#[test]
+fn bake_option_writes_the_field() {
+    let (p, i) = sphere(1.0, 16, 32, false);
+    let path = mesh_scene("sdf-bake", &p, &i);
+    let out = temp_dir("sdf-bake-out");
+    let exe = env!("CARGO_BIN_EXE_radbake");
+    let run = std::process::Command::new(exe)
+        .args([
+            "bake",
+            "-q",
+            "--force",
+            "--texels-per-meter",
+            "4",
+            "--probes",
+            "off",
+            "--sdf",
+            "24",
+        ])
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let alone = out.join("alone.ktx2");
+    let run = std::process::Command::new(exe)
+        .args(["sdf", "-q", "--resolution", "24", "--out"])
+        .arg(&alone)
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let read = |p: &std::path::Path| -> Vec<f32> {
+        let bytes = std::fs::read(p).unwrap();
+        let reader = ktx2::Reader::new(&bytes[..]).unwrap();
+        let level = reader.levels().next().unwrap();
+        zstd::bulk::decompress(level.data, 1 << 28)
+            .unwrap()
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    };
+    let (a, b) = (read(&out.join("sdf.ktx2")), read(&alone));
+    assert_eq!(a.len(), b.len());
+    let worst = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-5, "worst difference {worst}");
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(alone.with_extension("json")).unwrap()).unwrap();
+    assert_eq!(manifest["sdf"]["ktx2"], "sdf.ktx2");
+    assert_eq!(manifest["sdf"]["dims"], sidecar["sdf"]["dims"]);
+    assert_eq!(manifest["sdf"]["bounds_min"], sidecar["sdf"]["bounds_min"]);
+}

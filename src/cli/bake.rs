@@ -123,6 +123,9 @@ pub struct BakeArgs {
     /// Rays per probe [default: 256; preview 128, production 1024].
     #[arg(long)]
     pub probe_rays: Option<u32>,
+    /// Also bake the signed distance field (sdf.ktx2) with this many voxels along the longest side [default: 0, none].
+    #[arg(long, value_name = "VOXELS")]
+    pub sdf: Option<u32>,
     /// Adaptive gather: a texel stops at 32, 64, … rays once its estimated relative
     /// standard error is at most this; 0 casts every ray [default: 0.005].
     #[arg(long)]
@@ -266,6 +269,7 @@ impl BakeArgs {
             probe_spacing,
             probe_budget,
             probe_rays,
+            sdf,
             stitch_seams,
             burial_planes,
             backface_tolerance,

@@ -426,6 +426,15 @@ pub fn write_engine_outputs(
         }
         None => serde_json::Value::Null,
     };
+    let sdf_entry = match &bake.sdf {
+        Some(field) => {
+            let path = out_dir.join("sdf.ktx2");
+            sdf::write_ktx2(&path, field)?;
+            written.push(path);
+            sdf::manifest_entry(field, None, Some("sdf.ktx2".into()))
+        }
+        None => serde_json::Value::Null,
+    };
     let manifest = serde_json::json!({
         "radbake_version": env!("CARGO_PKG_VERSION"),
         "convention": "a texel holds incident irradiance / pi (linear RGB): outgoing radiance = albedo * texel + emission",
@@ -437,6 +446,7 @@ pub fn write_engine_outputs(
         "lights": crate::report::LightReport::all(&scene.lights, bake.shadowmask.as_ref().map(|m| m.channel.as_slice())),
         "probes": probes_entry,
         "shadowmask": mask.map_or(serde_json::Value::Null, |(_, w)| w.manifest),
+        "sdf": sdf_entry,
     });
     let path = out_dir.join("manifest.json");
     let text = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::Encode {

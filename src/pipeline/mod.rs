@@ -64,6 +64,8 @@ pub struct Bake<'s> {
     pub shadowmask: Option<Shadowmask>,
     /// Light probes (`None` with `probes = false`).
     pub probes: Option<Probes>,
+    /// The signed distance field (`None` with `sdf = 0`).
+    pub sdf: Option<crate::sdf::Sdf>,
     /// Wall time per stage.
     pub stages: Vec<StageTime>,
     /// Non-fatal problems.
@@ -156,6 +158,20 @@ pub fn bake<'s>(
         log.warnings.extend(probe_warnings(p));
     }
 
+    let sdf = (config.sdf > 0).then(|| {
+        log.begin("sdf", 0);
+        let bounds = geometry
+            .bounds()
+            .unwrap_or((glam::Vec3::ZERO, glam::Vec3::ONE));
+        let settings = crate::sdf::Settings {
+            voxel: crate::sdf::voxel_for_resolution(bounds, config.sdf),
+            band: None,
+        };
+        let field = crate::sdf::bake(scene, &geometry, &rays, settings);
+        log.end("sdf");
+        field
+    });
+
     Ok(Bake {
         scene,
         config: config.clone(),
@@ -168,6 +184,7 @@ pub fn bake<'s>(
         maps,
         shadowmask,
         probes,
+        sdf,
         stages: log.stages,
         warnings: log.warnings,
     })
