@@ -175,19 +175,27 @@ impl Sdf {
     /// a twentieth of a voxel a step. Within 0.6 voxel of a surface it
     /// walks on in tenths of a voxel to where the field crosses zero (a
     /// solid's surface; linear between the two steps) or stops falling (a
-    /// sheet): the hit's t. None where the ray leaves the grid or passes
-    /// `tmax` first. At most 2048 steps.
+    /// sheet): the hit's t. The march starts where the ray enters the
+    /// grid; None where it leaves the grid or passes `tmax` first. At most
+    /// 2048 steps.
     pub fn march(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<f32> {
         let g = &self.grid;
         let size = Vec3::new(g.dims[0] as f32, g.dims[1] as f32, g.dims[2] as f32) * g.voxel;
         let (lo, hi) = (g.origin, g.origin + size);
-        let outside = |p: Vec3| p.cmplt(lo).any() || p.cmpgt(hi).any();
-        let mut t = 0.0f32;
+        // Where the ray is inside the grid's box (slabs).
+        let inv = dir.recip();
+        let (ta, tb) = ((lo - origin) * inv, (hi - origin) * inv);
+        let enter = ta.min(tb).max_element().max(0.0);
+        let leave = ta.max(tb).min_element().min(tmax);
+        if enter > leave {
+            return None;
+        }
+        let mut t = enter;
         for _ in 0..2048 {
-            let p = origin + dir * t;
-            if t > tmax || outside(p) {
+            if t > leave {
                 return None;
             }
+            let p = origin + dir * t;
             let d = self.sample(p);
             if d < 0.6 * g.voxel {
                 return Some(self.refine(origin, dir, t, d));

@@ -26,6 +26,10 @@ pub struct RenderArgs {
     /// Estimator of the reference (the final pass always traces paths).
     #[arg(long, value_enum, default_value = "path")]
     pub integrator: radbake::trace::render::Integrator,
+    /// Voxels along the scene's longest side of the distance field that
+    /// `--integrator sphere-trace` marches.
+    #[arg(long, default_value_t = 256)]
+    pub sdf_resolution: u32,
     #[command(flatten)]
     pub at: ViewArgs,
     /// Vertical field of view in degrees for --look-from and the framing.
@@ -78,6 +82,13 @@ pub fn run(args: &RenderArgs) -> Outcome {
         });
     }
     let mut integrator = args.integrator;
+    if integrator == Integrator::SphereTrace && baked.is_none() {
+        return Err((
+            1,
+            "--integrator sphere-trace shades from a bake's lightmaps: give --lightmaps BAKE_DIR"
+                .into(),
+        ));
+    }
     if integrator == Integrator::Bdpt
         && (baked.is_some() || !radbake::trace::bdpt::supports(&tracer))
     {
@@ -92,7 +103,7 @@ pub fn run(args: &RenderArgs) -> Outcome {
     } else {
         let passes = match integrator {
             Integrator::Bdpt => render::BDPT_PASSES as u64,
-            Integrator::Path => 1,
+            Integrator::Path | Integrator::SphereTrace => 1,
         };
         ProgressBar::new(args.size.1 as u64 * passes).with_style(
             ProgressStyle::with_template(
@@ -107,15 +118,30 @@ pub fn run(args: &RenderArgs) -> Outcome {
     } else {
         "reference"
     });
-    let image = render::render(
-        &tracer,
-        &view,
-        args.size,
-        args.spp,
-        integrator,
-        args.seed,
-        &|n| bar.inc(n),
-    );
+    let image = if integrator == Integrator::SphereTrace {
+        let bounds = geometry
+            .bounds()
+            .unwrap_or((glam::Vec3::ZERO, glam::Vec3::ONE));
+        let settings = radbake::sdf::Settings {
+            voxel: radbake::sdf::voxel_for_resolution(bounds, args.sdf_resolution.max(1)),
+            band: None,
+        };
+        let field = radbake::sdf::bake(&scene, geometry, &rays, settings);
+        let size = args.size;
+        radbake::trace::sphere::render(&tracer, &field, &view, size, args.spp, args.seed, &|n| {
+            bar.inc(n)
+        })
+    } else {
+        render::render(
+            &tracer,
+            &view,
+            args.size,
+            args.spp,
+            integrator,
+            args.seed,
+            &|n| bar.inc(n),
+        )
+    };
     bar.finish_and_clear();
     write_image(args, &image)?;
     if !args.quiet {

@@ -20,6 +20,7 @@
 
 pub mod bdpt;
 pub mod render;
+pub mod sphere;
 pub mod view;
 
 use crate::direct::{extent_sample, punctual_irradiance, punctual_unoccluded, Lights};

@@ -27,6 +27,10 @@ pub enum Integrator {
     Path,
     /// Bidirectional path tracing (Veach 1997) with balance-heuristic MIS.
     Bdpt,
+    /// The final pass by sphere tracing the level's signed distance field
+    /// ([`super::sphere`]; needs the field, so [`render`] takes it as
+    /// `Path`).
+    SphereTrace,
 }
 
 /// A rendered image: linear radiance and the variance of each pixel's mean.
