@@ -310,26 +310,18 @@ fn lightmap_false_still_shades_and_bounces() {
     // The files.
     let path = walled_ground("lm-cli", json!({"radbake": {"lightmap": false}}));
     let out = temp_dir("lm-cli-out");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
-        .args([
-            "bake",
-            "-q",
-            "--force",
-            "--texels-per-meter",
-            "8",
-            "--probes",
-            "off",
-        ])
-        .arg(&path)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    common::run_ok::<_, std::ffi::OsString>([
+        "bake".into(),
+        "-q".into(),
+        "--force".into(),
+        "--texels-per-meter".into(),
+        "8".into(),
+        "--probes".into(),
+        "off".into(),
+        std::ffi::OsString::from(&path),
+        std::ffi::OsString::from("--out"),
+        std::ffi::OsString::from(&out),
+    ]);
     let read = |f: &str| -> Value {
         serde_json::from_slice(&std::fs::read(out.join(f)).unwrap()).unwrap()
     };
@@ -337,9 +329,7 @@ fn lightmap_false_still_shades_and_bounces() {
     assert_eq!(manifest["instances"][0]["lightmap"], true);
     assert_eq!(manifest["instances"][1]["lightmap"], false);
     assert_eq!(read("report.json")["instances"][1]["lightmap"], false);
-    let glb = std::fs::read(out.join("wall.baked.glb")).unwrap();
-    let len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let doc: Value = serde_json::from_slice(&glb[20..20 + len]).unwrap();
+    let doc = common::glb_json(&out.join("wall.baked.glb"));
     let lightmapped = |node: usize| {
         let mesh = doc["nodes"][node]["mesh"].as_u64().unwrap() as usize;
         doc["meshes"][mesh]["primitives"]

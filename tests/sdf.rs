@@ -248,31 +248,22 @@ fn deterministic_and_written() {
         .all(|(a, b)| a.to_bits() == b.to_bits()));
 
     let out = temp_dir("sdf-files-out").join("field.ktx2");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
-        .args(["sdf", "-q", "--voxel-size", "0.125", "--out"])
-        .arg(&out)
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let bytes = std::fs::read(&out).unwrap();
-    let reader = ktx2::Reader::new(&bytes[..]).unwrap();
-    let h = reader.header();
+    common::run_ok::<_, std::ffi::OsString>([
+        "sdf".into(),
+        "-q".into(),
+        "--voxel-size".into(),
+        "0.125".into(),
+        "--out".into(),
+        std::ffi::OsString::from(&out),
+        std::ffi::OsString::from(&path),
+    ]);
+    let (h, raw) = common::ktx2_level(&out);
     assert_eq!(h.format, Some(ktx2::Format::R32_SFLOAT));
     assert_eq!(
         [h.pixel_width, h.pixel_height, h.pixel_depth],
         one.grid.dims
     );
-    let level = reader.levels().next().unwrap();
-    let raw = zstd::bulk::decompress(level.data, 1 << 28).unwrap();
-    let values: Vec<f32> = raw
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-        .collect();
+    let values = floats(&raw);
     assert_eq!(values, one.distance);
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.with_extension("json")).unwrap()).unwrap();
@@ -301,51 +292,31 @@ fn bake_option_writes_the_field() {
     let (p, i) = sphere(1.0, 16, 32, false);
     let path = mesh_scene("sdf-bake", &p, &i);
     let out = temp_dir("sdf-bake-out");
-    let exe = env!("CARGO_BIN_EXE_radbake");
-    let run = std::process::Command::new(exe)
-        .args([
-            "bake",
-            "-q",
-            "--force",
-            "--texels-per-meter",
-            "4",
-            "--probes",
-            "off",
-            "--sdf",
-            "24",
-        ])
-        .arg(&path)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    common::run_ok::<_, std::ffi::OsString>([
+        "bake".into(),
+        "-q".into(),
+        "--force".into(),
+        "--texels-per-meter".into(),
+        "4".into(),
+        "--probes".into(),
+        "off".into(),
+        "--sdf".into(),
+        "24".into(),
+        std::ffi::OsString::from(&path),
+        std::ffi::OsString::from("--out"),
+        std::ffi::OsString::from(&out),
+    ]);
     let alone = out.join("alone.ktx2");
-    let run = std::process::Command::new(exe)
-        .args(["sdf", "-q", "--resolution", "24", "--out"])
-        .arg(&alone)
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let read = |p: &std::path::Path| -> Vec<f32> {
-        let bytes = std::fs::read(p).unwrap();
-        let reader = ktx2::Reader::new(&bytes[..]).unwrap();
-        let level = reader.levels().next().unwrap();
-        zstd::bulk::decompress(level.data, 1 << 28)
-            .unwrap()
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-            .collect()
-    };
+    common::run_ok::<_, std::ffi::OsString>([
+        "sdf".into(),
+        "-q".into(),
+        "--resolution".into(),
+        "24".into(),
+        "--out".into(),
+        std::ffi::OsString::from(&alone),
+        std::ffi::OsString::from(&path),
+    ]);
+    let read = |p: &std::path::Path| floats(&common::ktx2_level(p).1);
     let (a, b) = (read(&out.join("sdf.ktx2")), read(&alone));
     assert_eq!(a.len(), b.len());
     let worst = a
@@ -450,4 +421,11 @@ fn sphere_traced_render_matches_the_bvh() {
     // emission (the nearest triangle short of the hit), a bright halo of
     // a voxel; so a looser bound for the whole image.
     assert!(rel(marched.mean(), fin.mean()) < 0.05);
+}
+
+/// Little-endian f32s.
+fn floats(raw: &[u8]) -> Vec<f32> {
+    raw.chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect()
 }

@@ -298,26 +298,18 @@ fn cli_writes_the_shadowmask_files() {
         &[([0.0, LIGHT_Y, 0.0], None, mode("shadowmask"))],
     );
     let out = temp_dir("mask-cli-out");
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
-        .args([
-            "bake",
-            "-q",
-            "--force",
-            "--texels-per-meter",
-            "10",
-            "--probes",
-            "off",
-        ])
-        .arg(&path)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        status.status.success(),
-        "{}",
-        String::from_utf8_lossy(&status.stderr)
-    );
+    common::run_ok::<_, std::ffi::OsString>([
+        "bake".into(),
+        "-q".into(),
+        "--force".into(),
+        "--texels-per-meter".into(),
+        "10".into(),
+        "--probes".into(),
+        "off".into(),
+        std::ffi::OsString::from(&path),
+        std::ffi::OsString::from("--out"),
+        std::ffi::OsString::from(&out),
+    ]);
     let png = image::open(out.join("shadowmask_0.png"))
         .unwrap()
         .to_rgba8();
@@ -325,13 +317,9 @@ fn cli_writes_the_shadowmask_files() {
     assert!(r.contains(&0) && r.contains(&255));
     assert!(png.pixels().all(|p| p[1] == 0 && p[2] == 0 && p[3] == 0));
     assert!(out.join("shadowmask_0.exr").is_file());
-    let ktx = std::fs::read(out.join("shadowmask_0.ktx2")).unwrap();
-    let reader = ktx2::Reader::new(&ktx[..]).unwrap();
-    let header = reader.header();
+    let (header, raw) = common::ktx2_level(&out.join("shadowmask_0.ktx2"));
     assert_eq!(header.format, Some(ktx2::Format::R8G8B8A8_UNORM));
     assert_eq!((header.pixel_width, header.pixel_height), png.dimensions());
-    let level = reader.levels().next().unwrap();
-    let raw = zstd::bulk::decompress(level.data, png.as_raw().len()).unwrap();
     assert_eq!(&raw, png.as_raw());
 
     let manifest = read_json(&out.join("manifest.json"));
@@ -343,9 +331,7 @@ fn cli_writes_the_shadowmask_files() {
     assert_eq!(report["lights"][0]["shadowmask_channel"], "r");
     assert!(report["counts"]["rays_shadowmask"].as_u64().unwrap() > 0);
 
-    let glb = std::fs::read(out.join("box.baked.glb")).unwrap();
-    let len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let doc: Value = serde_json::from_slice(&glb[20..20 + len]).unwrap();
+    let doc = common::glb_json(&out.join("box.baked.glb"));
     let lamp = doc["nodes"]
         .as_array()
         .unwrap()
@@ -399,26 +385,18 @@ fn preview_masks_shadowmask_lights() {
             &[([0.0, LIGHT_Y, 0.0], None, mode(m))],
         );
         let out = dir.join(m);
-        let bake = std::process::Command::new(exe)
-            .args([
-                "bake",
-                "-q",
-                "--force",
-                "--texels-per-meter",
-                "20",
-                "--probes",
-                "off",
-            ])
-            .arg(&scene)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
-        assert!(
-            bake.status.success(),
-            "{}",
-            String::from_utf8_lossy(&bake.stderr)
-        );
+        common::run_ok::<_, std::ffi::OsString>([
+            "bake".into(),
+            "-q".into(),
+            "--force".into(),
+            "--texels-per-meter".into(),
+            "20".into(),
+            "--probes".into(),
+            "off".into(),
+            std::ffi::OsString::from(&scene),
+            std::ffi::OsString::from("--out"),
+            std::ffi::OsString::from(&out),
+        ]);
         let png = dir.join(format!("{m}.png"));
         let run = std::process::Command::new(exe)
             .arg("preview")

@@ -234,7 +234,7 @@ pub fn render(
 }
 
 /// Film point in [−1, 1]² (y up) of pixel (x, y) at sub-pixel `j`.
-fn film_point(x: u32, y: u32, j: Vec2, (width, height): (u32, u32)) -> Vec2 {
+pub(crate) fn film_point(x: u32, y: u32, j: Vec2, (width, height): (u32, u32)) -> Vec2 {
     Vec2::new(
         2.0 * (x as f32 + j.x) / width as f32 - 1.0,
         1.0 - 2.0 * (y as f32 + j.y) / height as f32,

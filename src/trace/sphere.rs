@@ -20,7 +20,7 @@ use crate::direct::punctual_irradiance;
 use crate::sampling::{stratified, Stream};
 use crate::scene::LightMode;
 use crate::sdf::Sdf;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// Stream purpose id of the sphere-traced camera rays.
@@ -112,10 +112,7 @@ pub fn render(
                     let mut sum = Vec3::ZERO;
                     for k in 0..spp {
                         let j = stratified(k, spp, rng.next_vec2());
-                        let ndc = Vec2::new(
-                            2.0 * (x as f32 + j.x) / width as f32 - 1.0,
-                            1.0 - 2.0 * (y as f32 + j.y) / height as f32,
-                        );
+                        let ndc = super::render::film_point(x, y, j, size);
                         let l = radiance(tracer, sdf, view.eye, view.ray(ndc, aspect));
                         if l.is_finite() {
                             sum += l;

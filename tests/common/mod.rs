@@ -495,3 +495,40 @@ pub fn check_penumbra(bake: &radbake::Bake, fraction: impl Fn(usize) -> f64, r: 
     assert!((measured / analytic - 1.0).abs() < 0.10);
     (measured, analytic)
 }
+
+// ---- Running the binary and reading its files ----
+
+/// Runs `radbake` with `args`; panics with its stderr where it fails.
+pub fn run_ok<I, S>(args: I) -> std::process::Output
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(args)
+        .output()
+        .expect("radbake runs");
+    assert!(
+        out.status.success(),
+        "radbake failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// The JSON chunk of a `.glb` file.
+pub fn glb_json(path: &Path) -> Value {
+    let glb = std::fs::read(path).unwrap();
+    let len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    serde_json::from_slice(&glb[20..20 + len]).unwrap()
+}
+
+/// A one-level, Zstandard-supercompressed KTX2 file: its header and its
+/// level's bytes.
+pub fn ktx2_level(path: &Path) -> (ktx2::Header, Vec<u8>) {
+    let bytes = std::fs::read(path).unwrap();
+    let reader = ktx2::Reader::new(&bytes[..]).unwrap();
+    let level = reader.levels().next().unwrap();
+    let data = zstd::bulk::decompress(level.data, 1 << 30).unwrap();
+    (reader.header(), data)
+}
