@@ -395,24 +395,27 @@ pub fn escaped(lights: &Lights, mis: Mis, n: Vec3, dir: Vec3) -> Vec3 {
     }
 }
 
-/// Light samples of a sky map from `points` (one each; point and normal),
-/// unit-square points a Hammersley set turned by `shift` and mapped
-/// through the map's luminance distribution ([`SkyMap::sample`]); each
-/// unoccluded one weighted by the light estimator's MIS weight against
-/// the cosine rays (see [`escaped`]). Returns irradiance / π (the mean
-/// over the points) and the shadow rays cast.
+/// `n` light samples of a sky map, from `points` (point and normal)
+/// evenly strided (sample k from point k·len/n, so a stratified set stays
+/// spread over the texel), unit-square points a Hammersley set turned by
+/// `shift` and mapped through the map's luminance distribution
+/// ([`SkyMap::sample`]); each unoccluded one weighted by the light
+/// estimator's MIS weight against the cosine rays (see [`escaped`]).
+/// Returns irradiance / π (the mean over the samples) and the shadow rays
+/// cast; nothing without points.
 pub fn sky_light(
     rays: &RayCaster,
     map: &SkyMap,
     mis: Mis,
     points: &[(Vec3, Vec3)],
+    n: u32,
     shift: Vec2,
 ) -> (Vec3, u64) {
-    let n = points.len() as u32;
+    let n = if points.is_empty() { 0 } else { n };
     let mut h = Vec3::ZERO;
     let mut cast = 0;
     for k in 0..n {
-        let (p, normal) = points[k as usize];
+        let (p, normal) = points[k as usize * points.len() / n as usize];
         let (dir, pdf, l) = map.sample(hammersley(k, n, shift));
         let cos = normal.dot(dir);
         if pdf <= 0.0 || cos <= 0.0 {
@@ -584,14 +587,8 @@ pub fn direct_at(
     // A sky map's light samples (a uniform sky has only the cosine rays,
     // its ideal sampling already).
     if let Some(map) = lights.sky.map().filter(|m| !m.is_black()) {
-        // `sky_samples` of the texel's stratified points, evenly strided.
-        let n = lights.sky_samples as usize;
-        let at: Vec<(Vec3, Vec3)> = if points.is_empty() {
-            Vec::new()
-        } else {
-            (0..n).map(|k| points[k * points.len() / n]).collect()
-        };
-        let (sky, cast) = sky_light(s.rays, map, lights.sky_mis(mis), &at, rng.next_vec2());
+        let n = lights.sky_samples;
+        let (sky, cast) = sky_light(s.rays, map, lights.sky_mis(mis), points, n, rng.next_vec2());
         h += sky;
         rays += cast;
     }

@@ -137,6 +137,21 @@ impl Geometry {
         p[0] * (1.0 - u - v) + p[1] * u + p[2] * v
     }
 
+    /// Barycentrics (u, v) (the weights of corners 1 and 2) of point `q`
+    /// in triangle `tri`'s plane: each corner's share is the signed area of
+    /// the sub-triangle opposite it. (0, 0) for a degenerate triangle.
+    pub fn barycentrics(&self, tri: u32, q: Vec3) -> (f32, f32) {
+        let [a, b, c] = self.p_ws[tri as usize];
+        let n = (b - a).cross(c - a);
+        let area2 = n.length_squared();
+        if area2 <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let u = (c - q).cross(a - q).dot(n) / area2;
+        let v = (a - q).cross(b - q).dot(n) / area2;
+        (u, v)
+    }
+
     /// `TEXCOORD_0` at barycentrics (u, v).
     pub fn uv0_at(&self, tri: u32, u: f32, v: f32) -> Vec2 {
         let t = &self.uv0[tri as usize];

@@ -210,13 +210,10 @@ impl LightReport {
             .map(|(l, light)| {
                 let mut r = LightReport::of(light);
                 if light.mode == LightMode::Shadowmask {
-                    match channel.and_then(|c| c[l]) {
-                        Some(c) => r.shadowmask_channel = Some(["r", "g", "b", "a"][c as usize]),
-                        None => {
-                            r.mode = LightMode::Indirect.name();
-                            r.requested = Some(LightMode::Shadowmask.name());
-                        }
-                    }
+                    let c = channel.and_then(|c| c[l]);
+                    r.mode = crate::shadowmask::baked_mode(light, c).name();
+                    r.shadowmask_channel = c.map(|c| crate::shadowmask::CHANNEL_NAMES[c as usize]);
+                    r.requested = c.is_none().then_some(LightMode::Shadowmask.name());
                 }
                 r
             })

@@ -294,20 +294,9 @@ fn face_sign(scene: &Scene, g: &Geometry, p: Vec3, (d, tri, q): Nearest) -> Opti
     if scene.materials[g.material[t] as usize].double_sided {
         return None;
     }
-    let [a, b, c] = g.p_ws[t];
-    let n = (b - a).cross(c - a);
-    let area2 = n.length_squared();
-    if area2 <= 0.0 {
-        return None;
-    }
-    // Barycentrics of q: each sub-triangle's share of the whole.
-    let bary = [
-        (b - q).cross(c - q),
-        (c - q).cross(a - q),
-        (a - q).cross(b - q),
-    ]
-    .map(|x| x.dot(n) / area2);
-    if bary.iter().any(|&w| w < 1e-4) {
+    // On an edge or a vertex (or a degenerate triangle, (0, 0)): no sign.
+    let (u, v) = g.barycentrics(tri, q);
+    if [1.0 - u - v, u, v].iter().any(|&w| w < 1e-4) {
         return None;
     }
     Some((p - q).dot(g.ng_ws[t]) < 0.0)

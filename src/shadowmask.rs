@@ -39,6 +39,19 @@ const PURPOSE: u64 = 41;
 /// Channels of a shadowmask page (R, G, B, A).
 pub const CHANNELS: usize = 4;
 
+/// The channels' names, as the manifest, the report and the baked `.glb`
+/// write them.
+pub const CHANNEL_NAMES: [&str; CHANNELS] = ["r", "g", "b", "a"];
+
+/// The mode `light` was baked in, given its `channel`: a shadowmask light
+/// that got none was baked as `indirect`.
+pub fn baked_mode(light: &Light, channel: Option<u8>) -> LightMode {
+    match (light.mode, channel) {
+        (LightMode::Shadowmask, None) => LightMode::Indirect,
+        (m, _) => m,
+    }
+}
+
 /// Shadowmask lights a scene may have (each texel tests each of them).
 pub const MAX_LIGHTS: usize = 256;
 

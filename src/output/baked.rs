@@ -160,7 +160,6 @@ pub fn baked_glb(
 /// `shadowmask_channel` (`r`, `g`, `b` or `a`); one that got no channel
 /// is written as `indirect`, the mode it was baked in.
 fn light_modes(scene: &Scene, channel: Option<&[Option<u8>]>, doc: &mut Value) {
-    use crate::scene::LightMode;
     for (l, light) in scene.lights.iter().enumerate() {
         let Some(node) = doc["nodes"].get_mut(light.node_index) else {
             continue;
@@ -177,10 +176,7 @@ fn light_modes(scene: &Scene, channel: Option<&[Option<u8>]>, doc: &mut Value) {
             continue;
         };
         let c = channel.and_then(|c| c[l]);
-        let mode = match (light.mode, c) {
-            (LightMode::Shadowmask, None) => LightMode::Indirect,
-            (m, _) => m,
-        };
+        let mode = crate::shadowmask::baked_mode(light, c);
         radbake.insert("mode".into(), json!(mode.name()));
         if let Some(c) = c {
             radbake.insert(
@@ -318,8 +314,7 @@ pub struct Masks<'a> {
     pub channel: &'a [Option<u8>],
 }
 
-/// Channel names, in the order of a page's RGBA.
-const CHANNEL_NAMES: [&str; 4] = ["r", "g", "b", "a"];
+use crate::shadowmask::CHANNEL_NAMES;
 
 /// The shadowmask pages as PNG textures (linear data, clamped, filtered
 /// bilinearly), in page order.

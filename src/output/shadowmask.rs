@@ -8,7 +8,7 @@
 use super::{ktx2, write_atomic, write_bytes_atomic};
 use crate::error::{Error, Result};
 use crate::scene::Light;
-use crate::shadowmask::{Shadowmask, CHANNELS};
+use crate::shadowmask::{Shadowmask, CHANNELS, CHANNEL_NAMES};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 
@@ -124,8 +124,7 @@ pub fn manifest_entry(mask: &Shadowmask, lights: &[Light], pages: Vec<Value>) ->
                 .filter(|&l| mask.channel[l] == Some(c))
                 .map(light)
                 .collect();
-            let name = ["r", "g", "b", "a"][c as usize];
-            json!({"channel": name, "lights": holders})
+            json!({"channel": CHANNEL_NAMES[c as usize], "lights": holders})
         })
         .collect();
     json!({

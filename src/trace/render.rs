@@ -193,11 +193,28 @@ pub fn render(
     seed: u64,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Image {
-    let (width, height) = size;
     let spp = spp.max(1);
     if integrator == Integrator::Bdpt {
         return render_bdpt(tracer, view, size, spp, seed, advance);
     }
+    render_pixels(view, size, spp, (seed, PURPOSE), advance, |dir, rng| {
+        tracer.radiance(view.eye, dir, rng)
+    })
+}
+
+/// Every pixel of `size` at `spp` stratified samples, each the camera ray
+/// through its film point given to `radiance` with the pixel's own stream
+/// (`seed`, purpose); the mean and the variance of the mean per pixel.
+/// NaN and infinite samples are dropped ([`finite`]).
+pub(crate) fn render_pixels(
+    view: &View,
+    (width, height): (u32, u32),
+    spp: u32,
+    (seed, purpose): (u64, u64),
+    advance: &(dyn Fn(u64) + Sync),
+    radiance: impl Fn(Vec3, &mut Stream) -> Vec3 + Sync,
+) -> Image {
+    let spp = spp.max(1);
     let aspect = width as f32 / height as f32;
     let rows: Vec<Vec<(Vec3, Vec3)>> = (0..height)
         .into_par_iter()
@@ -205,12 +222,12 @@ pub fn render(
             let row = (0..width)
                 .map(|x| {
                     let pixel = (y * width + x) as u64;
-                    let mut rng = Stream::new(seed, PURPOSE, pixel);
+                    let mut rng = Stream::new(seed, purpose, pixel);
                     let (mut sum, mut sq) = (Vec3::ZERO, Vec3::ZERO);
                     for k in 0..spp {
                         let j = stratified(k, spp, rng.next_vec2());
-                        let dir = view.ray(film_point(x, y, j, size), aspect);
-                        let l = finite(tracer.radiance(view.eye, dir, &mut rng));
+                        let dir = view.ray(film_point(x, y, j, (width, height)), aspect);
+                        let l = finite(radiance(dir, &mut rng));
                         sum += l;
                         sq += l * l;
                     }

@@ -17,11 +17,9 @@
 use super::render::{Image, View};
 use super::Tracer;
 use crate::direct::punctual_irradiance;
-use crate::sampling::{stratified, Stream};
 use crate::scene::LightMode;
 use crate::sdf::Sdf;
 use glam::Vec3;
-use rayon::prelude::*;
 
 /// Stream purpose id of the sphere-traced camera rays.
 const PURPOSE: u64 = 42;
@@ -40,11 +38,7 @@ pub fn radiance(tracer: &Tracer, sdf: &Sdf, origin: Vec3, dir: Vec3) -> Vec3 {
         return Vec3::ZERO;
     };
     let g = tracer.geometry;
-    let [a, b, c] = g.p_ws[tri as usize];
-    let n = (b - a).cross(c - a);
-    let area2 = n.length_squared().max(1e-20);
-    let u = (c - q).cross(a - q).dot(n) / area2;
-    let v = (a - q).cross(b - q).dot(n) / area2;
+    let (u, v) = g.barycentrics(tri, q);
     let m = g.material[tri as usize];
     let uv0 = g.uv0_at(tri, u, v);
     let ng = g.ng_ws[tri as usize];
@@ -100,36 +94,7 @@ pub fn render(
     seed: u64,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Image {
-    let (width, height) = size;
-    let spp = spp.max(1);
-    let aspect = width as f32 / height as f32;
-    let rows: Vec<Vec<Vec3>> = (0..height)
-        .into_par_iter()
-        .map(|y| {
-            let row = (0..width)
-                .map(|x| {
-                    let mut rng = Stream::new(seed, PURPOSE, (y * width + x) as u64);
-                    let mut sum = Vec3::ZERO;
-                    for k in 0..spp {
-                        let j = stratified(k, spp, rng.next_vec2());
-                        let ndc = super::render::film_point(x, y, j, size);
-                        let l = radiance(tracer, sdf, view.eye, view.ray(ndc, aspect));
-                        if l.is_finite() {
-                            sum += l;
-                        }
-                    }
-                    sum / spp as f32
-                })
-                .collect();
-            advance(1);
-            row
-        })
-        .collect();
-    let pixels: Vec<Vec3> = rows.into_iter().flatten().collect();
-    Image {
-        width,
-        height,
-        variance: vec![Vec3::ZERO; pixels.len()],
-        pixels,
-    }
+    super::render::render_pixels(view, size, spp, (seed, PURPOSE), advance, |dir, _| {
+        radiance(tracer, sdf, view.eye, dir)
+    })
 }
