@@ -190,7 +190,8 @@ fn realtime_light_bakes_as_no_light() {
 /// The Cornell box with a point light in `indirect` mode: every mesh's
 /// `mean` (which leaves the light's direct light out and keeps its
 /// bounces) within 1 % of the meter or 3 standard errors; the same bulb
-/// baked adds its direct light.
+/// baked adds its direct light: per texel that sees the bulb, baked =
+/// indirect + I cos θ / (π d²), the engine's direct term.
 #[test]
 fn cornell_indirect_point_light_matches_the_meter() {
     let mut doc: Value =
@@ -261,6 +262,34 @@ fn cornell_indirect_point_light_matches_the_meter() {
     let (with, without) = (floor(&baked), floor(&bake));
     eprintln!("floor: bulb baked {with:.5}, indirect {without:.5}");
     assert!(with > without * 1.1, "the bulb's direct light");
+
+    // Per texel: baked = indirect + the bulb's direct light, which the
+    // engine (and the preview) computes as I cos θ / (π d²) — checked on
+    // the wholly covered texels whose centre sees the bulb unoccluded.
+    let rays = radbake::raycast::RayCaster::new(&scene, &bake.geometry);
+    let (intensity, bulb_at) = (Vec3::new(1.0, 0.9, 0.8) * 0.05, Vec3::new(0.28, 0.42, 0.2));
+    let w = 1.0 / 232.0f32;
+    let (mut close, mut n, mut worst) = (0u32, 0u32, 0.0f32);
+    for t in 0..bake.texels.len() {
+        let (p, nrm) = (bake.texels.p_ws[t], bake.texels.n_ws[t]);
+        let d = bulb_at - p;
+        let cos = nrm.dot(d.normalize());
+        if bake.texels.area[t] < 0.99 * w * w || cos <= 0.05 || !bake.transport.valid[t] {
+            continue;
+        }
+        let origin = radbake::sampling::offset_ray_origin(p, nrm);
+        if !rays.unoccluded(origin, d.normalize(), d.length() * 0.999) {
+            continue;
+        }
+        let direct = intensity * cos / (std::f32::consts::PI * d.length_squared());
+        let sum = bake.transport.values[t] + direct;
+        let err = (sum - baked.transport.values[t]).abs().max_element() / direct.max_element();
+        worst = worst.max(err);
+        close += (err <= 0.01) as u32;
+        n += 1;
+    }
+    eprintln!("indirect + I cos/(π d²) against baked: {close} of {n} unoccluded texels within 1 % of the direct light, worst {worst:.4}");
+    assert!(n > 10_000 && close as f32 >= 0.98 * n as f32);
 }
 
 /// Precedence: `--light-mode` (config `lights`) > the node's extras >
