@@ -24,6 +24,18 @@ struct Globals {
     // Lights used of `lights`.
     light_count: u32,
     _pad: f32,
+    // world_from_clip (the inverse of view_proj): the sdf view's rays.
+    inv_view_proj: mat4x4<f32>,
+    // The level's signed distance field (shaders/sdf.wgsl): xyz its box's
+    // minimum corner, w the voxel edge (0: no field).
+    sdf_min: vec4<f32>,
+    // xyz: the box's maximum corner; w: 1 where the real-time lights are
+    // shadowed by sphere tracing the field, 0 where not.
+    sdf_max: vec4<f32>,
+    // x: the sdf view's slice height (world y); y: the reach of the
+    // distance-field ambient occlusion on probe-lit surfaces (metres; 0:
+    // none); z, w: unused.
+    sdf_params: vec4<f32>,
     // The lights an engine draws in real time (modes indirect, realtime).
     lights: array<PreviewLight, 8>,
 }
@@ -37,22 +49,32 @@ struct PreviewLight {
     // rgb: intensity (W/sr; W/m² for directional).
     intensity: vec4<f32>,
     // x, y: the spot cone's scale and offset; z: shadowmask channel
-    // (0-3; -1: none).
+    // (0-3; -1: none); w: the light's size for soft shadows: tan of a
+    // directional light's angular radius, a point or spot light's radius
+    // (metres).
     cone: vec4<f32>,
 }
 
-// Irradiance / π at `p` (unit normal `n`) from the real-time lights,
-// unshadowed, with the bake's falloff (direct::punctual_incident): E for a
-// directional light; I / d² × KHR_lights_punctual's range window and cone
-// falloff for point and spot lights; times cos θ / π; a shadowmask
-// light's times its channel of `mask` (1 elsewhere: unshadowed).
-fn realtime_light(p: vec3<f32>, n: vec3<f32>, mask: vec4<f32>) -> vec3<f32> {
+// Irradiance / π at `p` (unit normal `n`) from the real-time lights, with
+// the bake's falloff (direct::punctual_incident): E for a directional
+// light; I / d² × KHR_lights_punctual's range window and cone falloff for
+// point and spot lights; times cos θ / π; times the light's visibility. A
+// shadowmask light on a surface with a shadowmask (`has_mask`) is masked
+// by its channel of `mask`; every other light is shadowed by sphere
+// tracing the level's distance field where there is one and shadows are
+// on (sdf_shadow in sdf.wgsl), and unshadowed where not.
+fn realtime_light(p: vec3<f32>, n: vec3<f32>, mask: vec4<f32>, has_mask: bool) -> vec3<f32> {
     var sum = vec3<f32>(0.0);
+    let shadows = globals.sdf_min.w > 0.0 && globals.sdf_max.w > 0.5;
     for (var i = 0u; i < min(globals.light_count, 8u); i++) {
         let l = globals.lights[i];
         let kind = u32(l.position_kind.w + 0.5);
         var to_light = -l.direction_range.xyz;
         var e = l.intensity.rgb;
+        // How far a shadow ray goes, and the tangent of the light's
+        // angular radius seen from p.
+        var tmax = 1e30;
+        var tan_r = l.cone.w;
         if kind != 0u {
             let d = l.position_kind.xyz - p;
             let dist2 = dot(d, d);
@@ -61,6 +83,8 @@ fn realtime_light(p: vec3<f32>, n: vec3<f32>, mask: vec4<f32>) -> vec3<f32> {
             }
             let dist = sqrt(dist2);
             to_light = d / dist;
+            tmax = dist;
+            tan_r = l.cone.w / dist;
             var atten = 1.0 / dist2;
             let range = l.direction_range.w;
             if range > 0.0 {
@@ -73,11 +97,17 @@ fn realtime_light(p: vec3<f32>, n: vec3<f32>, mask: vec4<f32>) -> vec3<f32> {
             }
             e = e * atten;
         }
-        let channel = i32(round(l.cone.z));
-        if channel >= 0 && channel < 4 {
-            e = e * mask[channel];
+        let cos_theta = max(dot(n, to_light), 0.0);
+        if cos_theta <= 0.0 {
+            continue;
         }
-        sum += e * max(dot(n, to_light), 0.0) / 3.14159265358979;
+        let channel = i32(round(l.cone.z));
+        if has_mask && channel >= 0 && channel < 4 {
+            e = e * mask[channel];
+        } else if shadows {
+            e = e * sdf_shadow(p, n, to_light, tmax, tan_r);
+        }
+        sum += e * cos_theta / 3.14159265358979;
     }
     return sum;
 }
@@ -116,6 +146,9 @@ const VIEW_INVALID: u32 = 6u;
 // The lit scene plus a sphere per light probe (the spheres are drawn only
 // in this view; the shading is the default branch's).
 const VIEW_PROBES: u32 = 7u;
+// The level's distance field alone (a full-screen pass, fs_sdf_view in
+// sdf.wgsl): its sphere-traced surface and a horizontal slice.
+const VIEW_SDF: u32 = 8u;
 
 // VertexIn.probe.w: lightmapped; lit by probe.rgb (irradiance / π from the
 // bake's probes) in place of the lightmap; an invalid probe's red sphere.

@@ -6,7 +6,8 @@
 // lightmap irradiance / π + emissive × emissiveMap (lights_fragment_maps,
 // BRDF_Lambert, emissivemap_fragment), alpha = diffuseColor.a for BLEND. Probe-lit vertices (dynamic nodes, probe spheres)
 // carry their light, irradiance / π from the bake's probes computed per
-// vertex on the CPU, in place of the lightmap. Prefixed with common.wgsl by the Rust side.
+// vertex on the CPU, in place of the lightmap. Prefixed with common.wgsl
+// and sdf.wgsl by the Rust side.
 
 @group(0) @binding(0) var<uniform> globals: Globals;
 
@@ -118,18 +119,25 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     if has_lightmap {
         lightmap = lightmap_at(atlas_uv);
     }
+    let n = normalize(in.normal);
     if probe_lit {
         lightmap = in.probe.rgb;
+        // Distance-field ambient occlusion where the level's field is
+        // loaded and it is on (sdf.wgsl).
+        if globals.sdf_min.w > 0.0 && globals.sdf_params.y > 0.0 && in.probe.w < 0.5 * (PROBE_LIT + PROBE_INVALID) {
+            lightmap *= sdf_ao(in.world, n, globals.sdf_params.y);
+        }
     }
-    // The lights an engine draws in real time add their direct light,
-    // unshadowed (the lightmap and probes hold only their bounces).
-    // Shadowmask lights are masked by their channel (lightmapped surfaces
-    // only: probe-lit ones have no mask and draw them unshadowed).
+    // The lights an engine draws in real time add their direct light (the
+    // lightmap and probes hold only their bounces). Shadowmask lights are
+    // masked by their channel on lightmapped surfaces; the others, and
+    // all on probe-lit surfaces, are shadowed by sphere tracing the
+    // level's field where there is one, and unshadowed where not.
     var mask = vec4<f32>(1.0);
     if has_lightmap {
         mask = textureSampleLevel(shadowmask_texture, lightmap_sampler, atlas_uv, 0.0);
     }
-    let realtime = realtime_light(in.world, normalize(in.normal), mask);
+    let realtime = realtime_light(in.world, n, mask, has_lightmap);
     var lit = base.rgb * (lightmap + realtime) + emissive;
     // An invalid probe's sphere: plain red radiance.
     if in.probe.w > 0.5 * (PROBE_LIT + PROBE_INVALID) {

@@ -260,22 +260,34 @@ pub fn bake(scene: &Scene, geometry: &Geometry, rays: &RayCaster, settings: Sett
     }
 }
 
-/// The nearest triangle of a voxel's centre: (distance, triangle, point).
+/// The nearest triangle of a voxel's centre: (distance, triangle, point);
+/// the triangle is [`NO_FACE`] where there is no single one.
 type Nearest = (f32, u32, Vec3);
 
+/// [`Nearest`]'s triangle beyond the narrow band, or where another
+/// triangle is as near (within [`TIE`]): two coincident faces back to back
+/// (a box resting on a floor, whose bottom face lies on the floor's) give
+/// opposite signs there, so the voxel votes.
+const NO_FACE: u32 = u32::MAX;
+/// Squared distances within a factor 1 + `TIE` are a tie.
+const TIE: f32 = 1e-3;
+
 /// Step 1: the unsigned distance of every voxel's centre (clamped to
-/// `band`), with its nearest triangle and point (`u32::MAX` beyond the
-/// band).
+/// `band`), with its nearest triangle and point ([`NO_FACE`] beyond the
+/// band or on a tie).
 fn distances(grid: &Grid, rays: &RayCaster, band: Option<f32>) -> Vec<Nearest> {
     let max_d2 = band.map_or(f32::INFINITY, |b| b * b);
     (0..grid.len())
         .into_par_iter()
         .map(|i| {
             let p = grid.centre(i);
-            rays.closest_point(p, max_d2)
-                .map_or((band.unwrap_or(f32::INFINITY), u32::MAX, p), |(t, d, q)| {
-                    (d, t, q)
-                })
+            match rays.closest_point_and_runner_up(p, max_d2, TIE) {
+                None => (band.unwrap_or(f32::INFINITY), NO_FACE, p),
+                Some((t, d, q, second)) => {
+                    let tied = second * second <= d * d * (1.0 + TIE) + 1e-12;
+                    (d, if tied { NO_FACE } else { t }, q)
+                }
+            }
         })
         .collect()
 }
@@ -284,10 +296,11 @@ fn distances(grid: &Grid, rays: &RayCaster, band: Option<f32>) -> Vec<Nearest> {
 /// point inside a one-sided triangle (not on its edges) is on the side of
 /// `p` that the triangle's normal says, so `p` is inside where it lies
 /// behind it (the pseudo-normal rule of Bærentzen & Aanæs 2005, on a
-/// face). None on an edge or a vertex, on a double-sided face, or right
-/// on the surface: those vote.
+/// face). None on an edge or a vertex, on a double-sided face, where
+/// another face is as near ([`NO_FACE`]), or right on the surface: those
+/// vote.
 fn face_sign(scene: &Scene, g: &Geometry, p: Vec3, (d, tri, q): Nearest) -> Option<bool> {
-    if tri == u32::MAX || d <= 1e-6 {
+    if tri == NO_FACE || d <= 1e-6 {
         return None;
     }
     let t = tri as usize;

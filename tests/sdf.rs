@@ -139,6 +139,42 @@ fn analytic_fields() {
     );
 }
 
+/// A closed box resting on a one-sided floor, its bottom face lying on
+/// the floor's (coincident faces back to back, as every object placed on
+/// a level's floor): every voxel inside the box or below the floor is
+/// negative and every other one positive, farther than half a voxel from
+/// the faces. The
+/// nearest face is tied there between the floor (seen from above: outside)
+/// and the box's bottom (seen from inside: inside), so the voxel votes.
+#[test]
+fn box_resting_on_a_floor_is_solid() {
+    let voxel = 0.05;
+    let (mut p, mut i) = cube(0.5, false);
+    for v in &mut p {
+        v[1] += 0.5;
+    }
+    let (fp, fi) = quad([-2.0, 0.0, -2.0], [0.0, 0.0, 4.0], [4.0, 0.0, 0.0]);
+    let base = p.len() as u32;
+    p.extend(fp);
+    i.extend(fi.iter().map(|k| k + base));
+    let s = bake(&mesh_scene("sdf-resting", &p, &i), voxel);
+    let (mut wrong, mut checked) = (0, 0);
+    for k in 0..s.grid.len() {
+        let c = s.grid.centre(k);
+        let q = (c - Vec3::new(0.0, 0.5, 0.0)).abs() - Vec3::splat(0.5);
+        let boxf = q.max(Vec3::ZERO).length() + q.max_element().min(0.0);
+        // Solid: the box, and below the floor (behind its one-sided face).
+        let solid = boxf < 0.0 || c.y < 0.0;
+        if boxf.abs() > 0.5 * voxel && c.y.abs() > 0.5 * voxel {
+            checked += 1;
+            wrong += ((s.distance[k] < 0.0) != solid) as usize;
+        }
+    }
+    eprintln!("resting box: {wrong} wrong signs of {checked}");
+    assert!(checked > 10_000);
+    assert_eq!(wrong, 0);
+}
+
 /// A box without its top face: its signs agree with the closed box's
 /// everywhere farther than one voxel from the missing face.
 #[test]

@@ -38,6 +38,18 @@ pub struct PreviewArgs {
     /// Tone map of the HDR values.
     #[arg(long, value_enum, default_value = "aces")]
     pub tone_map: radbake::preview::ToneMap,
+    /// A distance field (`radbake sdf --out f.ktx2`, placed by `f.json`) in place of the bake's `sdf.ktx2` (found through `manifest.json` beside the .glb).
+    #[arg(long)]
+    pub sdf: Option<PathBuf>,
+    /// Draw the real-time lights unshadowed even where there is a distance field.
+    #[arg(long)]
+    pub no_sdf_shadows: bool,
+    /// Reach in metres of the distance-field ambient occlusion on probe-lit (dynamic) objects; 0 for none.
+    #[arg(long, default_value_t = radbake::preview::options::DFAO_REACH)]
+    pub dfao_reach: f32,
+    /// Height (world y) of the sdf view's slice plane [default: none, under the field's box].
+    #[arg(long, allow_negative_numbers = true)]
+    pub sdf_slice: Option<f32>,
 }
 
 pub fn run(args: &PreviewArgs) -> Outcome {
@@ -63,7 +75,11 @@ pub fn run(args: &PreviewArgs) -> Outcome {
             bicubic: args.bicubic,
             exposure_ev: args.exposure,
             tone_map: args.tone_map,
+            sdf_shadows: !args.no_sdf_shadows,
+            dfao_reach: args.dfao_reach,
+            sdf_slice: args.sdf_slice,
         },
+        sdf: args.sdf.clone(),
     };
     radbake::preview::run(&opts).map_err(|e| {
         let code = match e.downcast_ref::<radbake::Error>() {

@@ -4,10 +4,12 @@
 
 use bytemuck::{Pod, Zeroable};
 
-/// The shader source: `shaders/common.wgsl` followed by `shaders/preview.wgsl`
-/// (WGSL has no includes).
+/// The shader source: `shaders/common.wgsl`, `shaders/sdf.wgsl` and
+/// `shaders/preview.wgsl` (WGSL has no includes).
 pub const SHADER: &str = concat!(
     include_str!("../../shaders/common.wgsl"),
+    "\n",
+    include_str!("../../shaders/sdf.wgsl"),
     "\n",
     include_str!("../../shaders/preview.wgsl")
 );
@@ -34,9 +36,21 @@ pub struct Globals {
     pub light_count: u32,
     /// Padding to the WGSL struct's 16-byte alignment.
     pub _pad: f32,
+    /// world_from_clip (the inverse of `view_proj`): the sdf view's rays.
+    pub inv_view_proj: [[f32; 4]; 4],
+    /// The level's distance field ([`super::field`]): its box's minimum
+    /// corner (xyz) and voxel edge (w; 0: no field).
+    pub sdf_min: [f32; 4],
+    /// The box's maximum corner (xyz); w: 1 where the real-time lights are
+    /// shadowed by sphere tracing the field, 0 where not.
+    pub sdf_max: [f32; 4],
+    /// x: the sdf view's slice height (world y); y: the distance-field
+    /// ambient occlusion's reach on probe-lit surfaces (metres; 0: none).
+    pub sdf_params: [f32; 4],
     /// The lights the engine draws in real time (modes `indirect` and
     /// `realtime`, [`crate::scene::LightMode`]): their direct light,
-    /// unshadowed, is added to the lightmap's.
+    /// masked by the shadowmask or shadowed by the distance field where
+    /// there is one, is added to the lightmap's.
     pub lights: [PreviewLight; MAX_LIGHTS],
 }
 
@@ -56,7 +70,9 @@ pub struct PreviewLight {
     pub intensity: [f32; 4],
     /// x, y: the spot cone's scale and offset (KHR_lights_punctual's
     /// falloff: (cos θ · scale + offset)², clamped); z: the light's
-    /// shadowmask channel (0–3; −1: none, drawn unshadowed); w unused.
+    /// shadowmask channel (0–3; −1: none); w: the light's size for soft
+    /// shadows: tan of a directional light's angular radius, a point or
+    /// spot light's radius (metres).
     pub cone: [f32; 4],
 }
 
@@ -77,6 +93,10 @@ impl PreviewLight {
         };
         let mut cone = cone;
         cone[2] = channel.map_or(-1.0, f32::from);
+        cone[3] = match light.kind {
+            LightKind::Directional => (0.5 * light.angle).tan(),
+            _ => light.radius,
+        };
         PreviewLight {
             position_kind: light.position.extend(kind).to_array(),
             direction_range: light
@@ -230,6 +250,10 @@ pub fn layouts() -> Vec<Layout> {
                 ("viewport", offset_of!(Globals, viewport)),
                 ("light_count", offset_of!(Globals, light_count)),
                 ("_pad", offset_of!(Globals, _pad)),
+                ("inv_view_proj", offset_of!(Globals, inv_view_proj)),
+                ("sdf_min", offset_of!(Globals, sdf_min)),
+                ("sdf_max", offset_of!(Globals, sdf_max)),
+                ("sdf_params", offset_of!(Globals, sdf_params)),
                 ("lights", offset_of!(Globals, lights)),
             ],
         ),

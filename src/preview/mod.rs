@@ -31,6 +31,7 @@
 //! probe was found inside a solid.
 
 pub mod camera;
+pub mod field;
 pub mod gpu;
 pub mod headless;
 pub mod mips;
@@ -54,8 +55,21 @@ pub fn run(opts: &Options) -> Result<()> {
     if w == 0 || h == 0 || w > 16384 || h > 16384 {
         bail!("--size must be between 1x1 and 16384x16384");
     }
+    let dfao = opts.settings.dfao_reach;
+    if !(dfao.is_finite() && (0.0..=1e4).contains(&dfao)) {
+        bail!("--dfao-reach must be between 0 and 10000 metres");
+    }
     let t = Instant::now();
-    let model = Model::load(&opts.scene)?;
+    let mut model = Model::load(&opts.scene)?;
+    if let Some(path) = &opts.sdf {
+        model.field = Some(field::open(path)?);
+    }
+    if model.field.is_none() && opts.settings.view == ViewMode::Sdf {
+        eprintln!(
+            "warning: no distance field ({} has no `sdf`; bake with --sdf N or pass --sdf <file.ktx2>): the sdf view has nothing to show",
+            field::manifest_path(&opts.scene).display()
+        );
+    }
     for warning in &model.scene.warnings {
         eprintln!("warning: {warning}");
     }

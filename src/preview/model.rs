@@ -119,6 +119,9 @@ pub struct Model {
     /// material (the spheres themselves, [`probe_light::spheres`], are
     /// built by the renderer the first time the probes view is shown).
     pub probe_material: Option<usize>,
+    /// The level's signed distance field (the bake's `sdf.ktx2`, found
+    /// through `manifest.json` beside the `.glb`), if any.
+    pub field: Option<super::field::Field>,
 }
 
 /// `MOZ_lightmap` of every glTF material (None where absent), and the glTF
@@ -501,6 +504,7 @@ impl Model {
         model.debug_maps = debug_maps;
         model.shadowmasks = shadowmasks;
         model.light_channels = light_channels;
+        model.field = super::field::find(path)?;
         Ok(model)
     }
 
@@ -595,6 +599,7 @@ impl Model {
             debug_maps: Vec::new(),
             shadowmasks: Vec::new(),
             light_channels: Vec::new(),
+            field: None,
             probes,
             probe_material,
         }

@@ -33,11 +33,15 @@ pub enum ViewMode {
     /// probes found inside solids are red (needs `probes.json` beside the
     /// `.glb`).
     Probes = 7,
+    /// The level's signed distance field alone (needs `bake --sdf N`, or
+    /// `--sdf <file.ktx2>`): its sphere-traced surface, and the field on a
+    /// horizontal slice plane (PageUp / PageDown move it).
+    Sdf = 8,
 }
 
 impl ViewMode {
-    /// All views, in key order (1–8).
-    pub const ALL: [ViewMode; 8] = [
+    /// All views, in key order (1–9).
+    pub const ALL: [ViewMode; 9] = [
         ViewMode::Lit,
         ViewMode::Lightmap,
         ViewMode::Albedo,
@@ -46,6 +50,7 @@ impl ViewMode {
         ViewMode::Patches,
         ViewMode::Invalid,
         ViewMode::Probes,
+        ViewMode::Sdf,
     ];
 
     /// Short name.
@@ -59,6 +64,7 @@ impl ViewMode {
             ViewMode::Patches => "patches",
             ViewMode::Invalid => "invalid texels",
             ViewMode::Probes => "light probes",
+            ViewMode::Sdf => "distance field",
         }
     }
 }
@@ -73,6 +79,10 @@ pub enum ToneMap {
     None = 1,
 }
 
+/// The default reach of the distance-field ambient occlusion (metres):
+/// contact occlusion, finer than the probes' spacing.
+pub const DFAO_REACH: f32 = 1.0;
+
 /// Display settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
@@ -84,6 +94,15 @@ pub struct Settings {
     pub exposure_ev: f32,
     /// Tone map.
     pub tone_map: ToneMap,
+    /// With a distance field: the real-time lights' shadows sphere-traced
+    /// through it (else they are drawn unshadowed).
+    pub sdf_shadows: bool,
+    /// With a distance field: the reach (metres) of the distance-field
+    /// ambient occlusion on probe-lit surfaces; 0 for none.
+    pub dfao_reach: f32,
+    /// The sdf view's slice height (world y); None: a voxel below the
+    /// field's box (no slice; PageUp raises it).
+    pub sdf_slice: Option<f32>,
 }
 
 impl Default for Settings {
@@ -93,6 +112,9 @@ impl Default for Settings {
             bicubic: false,
             exposure_ev: 0.0,
             tone_map: ToneMap::Aces,
+            sdf_shadows: true,
+            dfao_reach: DFAO_REACH,
+            sdf_slice: None,
         }
     }
 }
@@ -134,6 +156,9 @@ pub struct Options {
     pub screenshot: Option<PathBuf>,
     /// Initial display settings.
     pub settings: Settings,
+    /// A distance field to use in place of the bake's (`radbake sdf
+    /// --out`'s `.ktx2`, placed by its `.json` sidecar).
+    pub sdf: Option<PathBuf>,
 }
 
 /// Picks the first viewpoint for `model` in an image of `aspect`.

@@ -11,6 +11,7 @@
 //! three.js's canvas.
 
 use super::camera::Camera;
+use super::field::Field;
 use super::gpu::{self, Globals, PreviewLight, Vertex};
 use super::mips;
 use super::model::Model;
@@ -36,6 +37,8 @@ struct Pipelines {
     opaque: [wgpu::RenderPipeline; 2],
     /// Blended, no depth writes: [back faces culled, front faces culled].
     blend: [wgpu::RenderPipeline; 2],
+    /// The sdf view: one full-screen triangle (`fs_sdf_view`).
+    sdf_view: wgpu::RenderPipeline,
 }
 
 /// The probe spheres on the GPU (indexed; drawn in the probes view only).
@@ -99,6 +102,8 @@ pub struct Renderer {
     depth: Option<(wgpu::TextureView, u32, u32)>,
     /// The lights drawn in real time ([`PreviewLight::realtime`]).
     lights: Vec<PreviewLight>,
+    /// The distance field's box (min, max) and voxel edge, if one is loaded.
+    field: Option<(glam::Vec3, glam::Vec3, f32)>,
     size: (u32, u32),
     /// The camera the next frame is drawn from.
     pub camera: Camera,
@@ -275,13 +280,24 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let field_view = field_texture(device, queue, model.field.as_ref());
         let globals_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("globals"),
             layout: &globals_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: globals.as_entire_binding(),
-            }],
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: globals.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&field_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Sampler(&clamp_sampler(device)),
+                },
+            ],
         });
         let mut textures = Textures::upload(device, queue, model);
         let material_groups = material_groups(device, &material_layout, model, &textures);
@@ -312,6 +328,10 @@ impl Renderer {
                 .collect(),
             probes: model.probes.clone().zip(model.probe_material),
             lights: realtime_lights(&model.scene, &model.light_channels),
+            field: model
+                .field
+                .as_ref()
+                .map(|f| (f.bounds.0, f.bounds.1, f.voxel)),
             spheres: None,
             material_groups,
             double_sided: model.materials.iter().map(|m| m.double_sided).collect(),
@@ -403,18 +423,7 @@ impl Renderer {
             }
         }
         let view_proj = self.camera.view_proj(w as f32 / h as f32);
-        let globals = Globals {
-            view_proj: view_proj.to_cols_array_2d(),
-            camera_pos: self.camera.eye.extend(1.0).to_array(),
-            exposure: 2f32.powf(s.exposure_ev),
-            view_mode: s.view as u32,
-            bicubic: s.bicubic as u32,
-            tone_map: s.tone_map as u32,
-            viewport: [w as f32, h as f32],
-            light_count: self.lights.len() as u32,
-            _pad: 0.0,
-            lights: std::array::from_fn(|i| self.lights.get(i).copied().unwrap_or_default()),
-        };
+        let globals = self.globals(view_proj);
         self.queue
             .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
         let depth = self.depth_view();
@@ -449,44 +458,91 @@ impl Renderer {
                 multiview_mask: None,
             });
             pass.set_bind_group(0, &self.globals_group, &[]);
-            // As three.js: the opaque (and masked) objects, then the
-            // blended ones back to front without depth writes, a
-            // double-sided one in two passes, back faces first
-            // (WebGLRenderer.renderObject).
-            if let Some(vertices) = &self.vertices {
-                pass.set_vertex_buffer(0, vertices.slice(..));
-                for b in self.batches.iter().filter(|b| b.origin.is_none()) {
-                    let pipeline = &self.pipelines.opaque[self.double_sided[b.material] as usize];
-                    pass.set_pipeline(pipeline);
-                    pass.set_bind_group(1, &self.material_groups[b.material], &[]);
-                    pass.draw(b.vertices.clone(), 0..1);
-                }
-            }
-            if let Some(sp) = self.spheres.as_ref().filter(|_| view == ViewMode::Probes) {
-                pass.set_pipeline(&self.pipelines.opaque[0]);
-                pass.set_bind_group(1, &self.material_groups[sp.material], &[]);
-                pass.set_vertex_buffer(0, sp.vertices.slice(..));
-                pass.set_index_buffer(sp.indices.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..sp.count, 0, 0..1);
-            }
-            if let Some(vertices) = &self.vertices {
-                pass.set_vertex_buffer(0, vertices.slice(..));
-                for i in self.blended_order(view_proj) {
-                    let b = &self.batches[i];
-                    pass.set_bind_group(1, &self.material_groups[b.material], &[]);
-                    let sides: &[usize] = if self.double_sided[b.material] {
-                        &[1, 0]
-                    } else {
-                        &[0]
-                    };
-                    for &side in sides {
-                        pass.set_pipeline(&self.pipelines.blend[side]);
-                        pass.draw(b.vertices.clone(), 0..1);
-                    }
-                }
+            if view == ViewMode::Sdf {
+                pass.set_pipeline(&self.pipelines.sdf_view);
+                pass.draw(0..3, 0..1);
+            } else {
+                self.draw_scene(&mut pass, view_proj);
             }
         }
         self.queue.submit([encoder.finish()])
+    }
+
+    /// Moves the sdf view's slice plane by `steps` voxels (from a voxel
+    /// below the field's box, where it is not seen, to a voxel above it);
+    /// nothing without a field.
+    pub fn move_slice(&mut self, steps: f32) {
+        if let Some((lo, hi, voxel)) = self.field {
+            let y = self.settings.sdf_slice.unwrap_or(lo.y - voxel);
+            self.settings.sdf_slice = Some((y + steps * voxel).clamp(lo.y - voxel, hi.y + voxel));
+        }
+    }
+
+    /// The frame's uniforms: camera, display settings, lights, field.
+    fn globals(&self, view_proj: glam::Mat4) -> Globals {
+        let (w, h) = self.size;
+        let s = &self.settings;
+        let (lo, hi, voxel) = self
+            .field
+            .unwrap_or((glam::Vec3::ZERO, glam::Vec3::ONE, 0.0));
+        let slice = s.sdf_slice.unwrap_or(lo.y - voxel);
+        Globals {
+            view_proj: view_proj.to_cols_array_2d(),
+            camera_pos: self.camera.eye.extend(1.0).to_array(),
+            exposure: 2f32.powf(s.exposure_ev),
+            view_mode: s.view as u32,
+            bicubic: s.bicubic as u32,
+            tone_map: s.tone_map as u32,
+            viewport: [w as f32, h as f32],
+            light_count: self.lights.len() as u32,
+            _pad: 0.0,
+            inv_view_proj: view_proj.inverse().to_cols_array_2d(),
+            sdf_min: lo.extend(voxel).to_array(),
+            sdf_max: hi.extend(f32::from(u8::from(s.sdf_shadows))).to_array(),
+            sdf_params: [slice, s.dfao_reach, 0.0, 0.0],
+            lights: std::array::from_fn(|i| self.lights.get(i).copied().unwrap_or_default()),
+        }
+    }
+
+    /// The scene's batches (and in the probes view the probe spheres).
+    fn draw_scene(&self, pass: &mut wgpu::RenderPass<'_>, view_proj: glam::Mat4) {
+        let view = self.settings.view;
+        // As three.js: the opaque (and masked) objects, then the
+        // blended ones back to front without depth writes, a
+        // double-sided one in two passes, back faces first
+        // (WebGLRenderer.renderObject).
+        if let Some(vertices) = &self.vertices {
+            pass.set_vertex_buffer(0, vertices.slice(..));
+            for b in self.batches.iter().filter(|b| b.origin.is_none()) {
+                let pipeline = &self.pipelines.opaque[self.double_sided[b.material] as usize];
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(1, &self.material_groups[b.material], &[]);
+                pass.draw(b.vertices.clone(), 0..1);
+            }
+        }
+        if let Some(sp) = self.spheres.as_ref().filter(|_| view == ViewMode::Probes) {
+            pass.set_pipeline(&self.pipelines.opaque[0]);
+            pass.set_bind_group(1, &self.material_groups[sp.material], &[]);
+            pass.set_vertex_buffer(0, sp.vertices.slice(..));
+            pass.set_index_buffer(sp.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..sp.count, 0, 0..1);
+        }
+        if let Some(vertices) = &self.vertices {
+            pass.set_vertex_buffer(0, vertices.slice(..));
+            for i in self.blended_order(view_proj) {
+                let b = &self.batches[i];
+                pass.set_bind_group(1, &self.material_groups[b.material], &[]);
+                let sides: &[usize] = if self.double_sided[b.material] {
+                    &[1, 0]
+                } else {
+                    &[0]
+                };
+                for &side in sides {
+                    pass.set_pipeline(&self.pipelines.blend[side]);
+                    pass.draw(b.vertices.clone(), 0..1);
+                }
+            }
+        }
     }
 
     /// Renders one frame offscreen at the current size and reads it back as
@@ -592,7 +648,8 @@ pub fn read_back(
     Ok(out)
 }
 
-/// The bind group layouts: per frame (globals) and per material (its
+/// The bind group layouts: per frame (globals, and the distance field
+/// with its sampler) and per material (its
 /// uniform, base colour, emissive, lightmap and debug map with samplers,
 /// and the shadowmask, read with the lightmap's sampler).
 fn bind_group_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::BindGroupLayout) {
@@ -624,10 +681,20 @@ fn bind_group_layouts(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::Bi
     };
     let globals_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("globals"),
-        entries: &[uniform(
-            0,
-            wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-        )],
+        entries: &[
+            uniform(0, wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT),
+            wgpu::BindGroupLayoutEntry {
+                binding: 1,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension: wgpu::TextureViewDimension::D3,
+                    multisampled: false,
+                },
+                count: None,
+            },
+            sampler_entry(2),
+        ],
     });
     let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("material"),
@@ -721,7 +788,89 @@ fn pipelines(
             pipeline(Some(wgpu::Face::Back), Some(normal)),
             pipeline(Some(wgpu::Face::Front), Some(normal)),
         ],
+        sdf_view: sdf_view_pipeline(device, &shader, globals_layout, format),
     }
+}
+
+/// The sdf view's pipeline: a full-screen triangle (`vs_fullscreen`,
+/// `fs_sdf_view`) reading only the globals group; depth always passes and
+/// is not written.
+fn sdf_view_pipeline(
+    device: &wgpu::Device,
+    shader: &wgpu::ShaderModule,
+    globals_layout: &wgpu::BindGroupLayout,
+    format: wgpu::TextureFormat,
+) -> wgpu::RenderPipeline {
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("sdf view"),
+        bind_group_layouts: &[Some(globals_layout)],
+        immediate_size: 0,
+    });
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("sdf view"),
+        layout: Some(&layout),
+        vertex: wgpu::VertexState {
+            module: shader,
+            entry_point: Some("vs_fullscreen"),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(false),
+            depth_compare: Some(wgpu::CompareFunction::Always),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: shader,
+            entry_point: Some("fs_sdf_view"),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// The distance field as a filterable `R16Float` 3D texture
+/// ([`Field::halves`]); a 1 × 1 × 1 texture of a large distance without
+/// one (the shaders then see `sdf_min.w == 0` and do not read it).
+fn field_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    field: Option<&Field>,
+) -> wgpu::TextureView {
+    let (dims, texels) = match field {
+        Some(f) => (f.dims, f.halves()),
+        None => ([1; 3], vec![half::f16::from_f32(1e4).to_bits()]),
+    };
+    let texture = device.create_texture_with_data(
+        queue,
+        &wgpu::TextureDescriptor {
+            label: Some("distance field"),
+            size: wgpu::Extent3d {
+                width: dims[0],
+                height: dims[1],
+                depth_or_array_layers: dims[2],
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format: wgpu::TextureFormat::R16Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&texels),
+    );
+    texture.create_view(&Default::default())
 }
 
 /// Every texture a material may bind, on the GPU.

@@ -22,8 +22,9 @@ use winit::window::{Window, WindowId};
 pub const HELP: &str = "\
 mouse: left drag orbit/look, right or middle drag pan, wheel zoom
 Tab: orbit <-> fly camera    W A S D: move (fly), Q/E: down/up, Shift: faster
-1 lit  2 lightmap  3 albedo  4 texel checker  5 chart borders  6 patches  7 invalid texels  8 probes
+1 lit  2 lightmap  3 albedo  4 texel checker  5 chart borders  6 patches  7 invalid texels  8 probes  9 distance field
 B: bilinear/bicubic lightmap   T: tone map ACES/none   +/-: exposure   0: exposure 0
+PageUp/PageDown: move the distance field's slice (Shift: 10 voxels)   G: distance-field shadows on/off
 F: reset camera   P: screenshot (preview_<n>.png)   H: help   Esc: quit";
 
 struct State {
@@ -158,7 +159,8 @@ impl App {
             | KeyCode::Digit5
             | KeyCode::Digit6
             | KeyCode::Digit7
-            | KeyCode::Digit8 => {
+            | KeyCode::Digit8
+            | KeyCode::Digit9 => {
                 let i = [
                     KeyCode::Digit1,
                     KeyCode::Digit2,
@@ -168,12 +170,20 @@ impl App {
                     KeyCode::Digit6,
                     KeyCode::Digit7,
                     KeyCode::Digit8,
+                    KeyCode::Digit9,
                 ]
                 .iter()
                 .position(|&k| k == code)
                 .unwrap_or(0);
                 r.settings.view = ViewMode::ALL[i];
             }
+            KeyCode::PageUp | KeyCode::PageDown => {
+                let shift = self.keys.contains(&KeyCode::ShiftLeft)
+                    || self.keys.contains(&KeyCode::ShiftRight);
+                let sign = if code == KeyCode::PageUp { 1.0 } else { -1.0 };
+                r.move_slice(sign * if shift { 10.0 } else { 1.0 });
+            }
+            KeyCode::KeyG => r.settings.sdf_shadows = !r.settings.sdf_shadows,
             KeyCode::KeyB => r.settings.bicubic = !r.settings.bicubic,
             KeyCode::KeyT => {
                 r.settings.tone_map = match r.settings.tone_map {

@@ -848,16 +848,29 @@ impl<const W: usize> Bvh<W> {
     /// one distance the lowest id wins, so the answer does not depend on
     /// the visit order. Alpha cut-outs are not consulted: a masked
     /// triangle counts whole.
-    pub(crate) fn closest_point(&self, p: Vec3, max_d2: f32) -> Option<(u32, f32, Vec3)> {
+    ///
+    /// Also the runner-up: the least squared distance of any other
+    /// triangle, exact where it is within a factor 1 + `tie` of the best
+    /// (subtrees are kept to that slack), else some larger value. A
+    /// coincident face (two coplanar faces back to back: an object resting
+    /// on a floor) shows as a runner-up at the best distance.
+    pub(crate) fn closest_point(
+        &self,
+        p: Vec3,
+        max_d2: f32,
+        tie: f32,
+    ) -> Option<(u32, f32, Vec3, f32)> {
         if self.root == EMPTY {
             return None;
         }
         let mut best: Option<(u32, f32, Vec3)> = None;
+        let mut second = f32::INFINITY;
         let mut limit = max_d2;
+        let slack = 1.0 + tie;
         let mut stack: Vec<(u32, f32)> = Vec::with_capacity(self.stack_needed.max(8));
         stack.push((self.root, 0.0));
         while let Some((r, d2)) = stack.pop() {
-            if d2 > limit {
+            if d2 > limit * slack {
                 continue;
             }
             if r & LEAF != 0 {
@@ -876,8 +889,13 @@ impl<const W: usize> Bvh<W> {
                         let dq = (q - p).length_squared();
                         let better = dq < limit || (dq == limit && best.is_some_and(|b| id < b.0));
                         if better {
+                            if let Some(b) = best {
+                                second = second.min(b.1);
+                            }
                             limit = dq;
                             best = Some((id, dq, q));
+                        } else {
+                            second = second.min(dq);
                         }
                     }
                 }
@@ -903,7 +921,7 @@ impl<const W: usize> Bvh<W> {
                     };
                     dc += d * d;
                 }
-                if dc <= limit {
+                if dc <= limit * slack {
                     children[n] = (node.child[c], dc);
                     n += 1;
                 }
@@ -912,7 +930,7 @@ impl<const W: usize> Bvh<W> {
             children[..n].sort_by(|a, b| b.1.total_cmp(&a.1));
             stack.extend_from_slice(&children[..n]);
         }
-        best
+        best.map(|(id, d2, q)| (id, d2, q, second))
     }
 }
 

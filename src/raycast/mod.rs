@@ -288,12 +288,26 @@ impl RayCaster {
     /// distance, nearest point). One best-first traversal of the BVH (see
     /// `bvh::Bvh::closest_point`); alpha cut-outs are not consulted.
     pub fn closest_point(&self, p: Vec3, max_dist2: f32) -> Option<(u32, f32, Vec3)> {
+        self.closest_point_and_runner_up(p, max_dist2, 0.0)
+            .map(|(t, d, q, _)| (t, d, q))
+    }
+
+    /// [`Self::closest_point`] and the distance of the runner-up, the
+    /// nearest other triangle: exact where it is within a factor
+    /// √(1 + `tie`) of the nearest, else larger. A runner-up at the same
+    /// distance is a tie (a coincident face, an edge, the medial axis).
+    pub fn closest_point_and_runner_up(
+        &self,
+        p: Vec3,
+        max_dist2: f32,
+        tie: f32,
+    ) -> Option<(u32, f32, Vec3, f32)> {
         match &self.bvh {
-            Accel::Four(b) => b.closest_point(p, max_dist2),
+            Accel::Four(b) => b.closest_point(p, max_dist2, tie),
             #[cfg(target_arch = "x86_64")]
-            Accel::Eight(b) => b.closest_point(p, max_dist2),
+            Accel::Eight(b) => b.closest_point(p, max_dist2, tie),
         }
-        .map(|(k, d2, q)| (self.ids[k as usize], d2.sqrt(), q))
+        .map(|(k, d2, q, second)| (self.ids[k as usize], d2.sqrt(), q, second.sqrt()))
     }
 
     /// Children per BVH node: 4 or 8.

@@ -264,6 +264,7 @@ fn preview(glb: &Path, png: &Path, camera: &str) -> Option<Vec<[f32; 3]>> {
             exposure_ev: 0.0,
             ..Default::default()
         },
+        sdf: None,
     };
     if let Err(e) = radbake::preview::run(&opts) {
         let text = format!("{e:#}");
