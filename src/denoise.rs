@@ -1,4 +1,4 @@
-//! Edge-aware denoising of the gathered indirect light: an à-trous wavelet
+//! Edge-aware denoising of the gathered light: an à-trous wavelet
 //! filter (Dammertz, Sewtz, Hanika & Lensch, "Edge-Avoiding À-Trous Wavelet
 //! Transform for fast Global Illumination Filtering", HPG 2010) in lightmap
 //! space. Three passes of the 5 × 5 B3-spline kernel with holes 1, 2, 4
@@ -7,7 +7,9 @@
 //! difference and — as in SVGF (Schied et al. 2017) — its difference in
 //! value relative to the texel's estimated noise (the gather's variance), so
 //! real gradients (contact shadows, corners) survive while noise goes.
-//! Only the indirect part is filtered: direct light keeps its sharp shadows.
+//! Only what the final gather's rays estimated is filtered (the indirect
+//! light and the hemisphere-sampled share of the sky's and area lights'
+//! direct light): light-sampled direct light keeps its sharp shadows.
 //! Each chart is then scaled back to the power it had before filtering.
 
 use crate::texels::Texels;

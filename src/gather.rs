@@ -158,7 +158,10 @@ pub struct Gathered {
     pub indirect: Vec<Vec3>,
     /// Texel validity.
     pub valid: Vec<bool>,
-    /// Variance of each texel's gathered mean (luminance), for the denoiser.
+    /// Variance of each texel's gathered mean (luminance): of everything
+    /// its rays gathered, the indirect light and the direct light they
+    /// estimate ([`Gathered::direct`]), which the denoiser filters
+    /// together.
     pub variance: Vec<f32>,
     /// Directional part of all incident light seen by the gather rays
     /// (indirect, sky, emitters; see [`crate::direct::Directional`]); empty
@@ -401,7 +404,7 @@ impl<'a> Gatherer<'a> {
         // The rule judges the irradiance only: the directional part and AO
         // need every ray.
         let adaptive = extras.threshold > 0.0 && !extras.directional && extras.ao_distance <= 0.0;
-        let (mut sum, mut back, mut sq) = (Vec3::ZERO, 0u32, 0.0f32);
+        let (mut sum, mut back) = (Vec3::ZERO, 0u32);
         // Luminance of each ray's whole contribution (indirect and
         // hemisphere direct), for the stopping rule.
         let (mut all, mut all_sq) = (0.0f32, 0.0f32);
@@ -480,20 +483,20 @@ impl<'a> Gatherer<'a> {
                 }
             }
             sum += indirect;
-            let lum = indirect.element_sum() / 3.0;
-            sq += lum * lum;
             let whole = (indirect + ray_light).element_sum() / 3.0;
             all += whole;
             all_sq += whole * whole;
         }
         let n = n_cast as f32;
         let mean = sum / n;
-        let lum = mean.element_sum() / 3.0;
         TexelGather {
             mean,
             valid: !too_many_back_faces(back, n_cast, extras.backface_tolerance)
                 && !surely_buried(back, n_cast, extras.backface_tolerance),
-            variance: ((sq / n - lum * lum).max(0.0)) / n,
+            variance: {
+                let whole = all / n;
+                ((all_sq / n - whole * whole).max(0.0)) / n
+            },
             directional: dir_sum.map(|b| b / n),
             ao: open as f32 / n,
             cast: n_cast,

@@ -272,6 +272,74 @@ fn denoising_reduces_error() {
     assert!(denoised < 0.8 * noisy, "noisy {noisy}, denoised {denoised}");
 }
 
+/// The denoiser covers the direct light that the gather's rays estimate:
+/// a plate 0.4 m over a floor under a uniform sky, no other light, so the
+/// floor's soft sky shadow is the cosine rays' (and the sky's light
+/// samples'). At 32 gather rays (16 direct samples, so the gather's rays
+/// are the direct light's hemisphere samples), the lightmap's RMSE
+/// against a 2048-ray reference drops below 0.6 × the unfiltered one, and
+/// every instance's texel mean stays within 0.5 % of the reference's.
+#[test]
+fn denoising_covers_the_sky_light() {
+    let mut b = GltfBuilder::default();
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = quad([-1.0, 0.0, -1.0], [0.0, 0.0, 2.0], [2.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let (p, i) = quad([-0.3, 0.4, -0.3], [0.6, 0.0, 0.0], [0.0, 0.0, 0.6]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("plate", m);
+    let path = temp_dir("denoise-sky").join("sky.gltf");
+    b.write(&path);
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let base = BakeConfig {
+        sky: [0.4, 0.5, 0.7],
+        texels_per_meter: 32.0,
+        direct_samples: 16,
+        ..BakeConfig::default()
+    };
+    let bake = |final_gather, denoise| {
+        let config = BakeConfig {
+            final_gather,
+            denoise,
+            ..base.clone()
+        };
+        radbake::bake(&scene, &config, &Silent).unwrap()
+    };
+    let reference = bake(2048, false);
+    let rmse = |b: &radbake::Bake| {
+        let (mut se, mut n) = (0.0f64, 0usize);
+        for (t, (a, r)) in b
+            .maps
+            .lightmaps
+            .texel_values
+            .iter()
+            .zip(&reference.maps.lightmaps.texel_values)
+            .enumerate()
+        {
+            if b.transport.valid[t] && reference.transport.valid[t] {
+                se += ((*a - *r).length_squared() / 3.0) as f64;
+                n += 1;
+            }
+        }
+        (se / n as f64).sqrt()
+    };
+    let (noisy, denoised) = (bake(32, false), bake(32, true));
+    let (e_noisy, e_denoised) = (rmse(&noisy), rmse(&denoised));
+    eprintln!("sky: RMSE {e_noisy:.5} noisy, {e_denoised:.5} denoised");
+    assert!(
+        e_denoised < 0.6 * e_noisy,
+        "noisy {e_noisy}, denoised {e_denoised}"
+    );
+    let want = texel_means(&reference, &reference.maps.lightmaps.texel_values);
+    let got = texel_means(&denoised, &denoised.maps.lightmaps.texel_values);
+    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+        let node = &scene.instances[i].node;
+        eprintln!("{node}: {g:.5} against {w:.5}");
+        assert!((g - w).abs() / w < 0.005, "{node}: {g} vs {w}");
+    }
+}
+
 /// A ground plane (albedo 0) under a uniform sky L: irradiance / π on a
 /// plane tilted by θ is L (1 + cos θ) / 2, which the L1 model a + n · b
 /// holds exactly: a = L/2, b = (0, L/2, 0). Checked per texel within 3 %

@@ -446,10 +446,16 @@ fn final_gather(
     gatherer.gather_cpu(advance)
 }
 
-/// Texel light from the gather: direct light (its hemisphere part replaced
-/// by the gather's where the gather estimates it) plus the gathered
-/// indirect light, denoised; the directional part is the gather's plus the
-/// punctual lights' exact part.
+/// Texel light from the gather: the direct light, its hemisphere part
+/// replaced by the gather's where the gather estimates it, plus the
+/// gathered indirect light. The denoiser filters everything the gather's
+/// rays estimated: the indirect light and that hemisphere part of the
+/// direct light (the sky's and area lights' cosine-sampled, MIS-weighted
+/// share, as noisy as the indirect in shade); the light-sampled direct
+/// light (punctual lights, light samples of area lights and the sky)
+/// keeps its sharp shadows. `direct` (the report's direct figures) is
+/// unfiltered. The directional part is the gather's plus the punctual
+/// lights' exact part.
 fn gathered_light(
     s: &Surfaces,
     atlas: &Atlas,
@@ -458,18 +464,17 @@ fn gathered_light(
     g: Gathered,
     log: &mut Log,
 ) -> TexelLight {
-    let texel_direct: Vec<Vec3> = if direct.gathering {
-        direct
-            .parts
-            .light
-            .iter()
-            .zip(&g.direct)
-            .map(|(l, h)| *l + *h)
-            .collect()
+    let (sharp, mut gathered): (Vec<Vec3>, Vec<Vec3>) = if direct.gathering {
+        let gathered = g.indirect.iter().zip(&g.direct).map(|(i, h)| *i + *h);
+        (direct.parts.light.clone(), gathered.collect())
     } else {
-        direct.parts.baked()
+        (direct.parts.baked(), g.indirect.clone())
     };
-    let mut indirect = g.indirect;
+    let texel_direct: Vec<Vec3> = if direct.gathering {
+        sharp.iter().zip(&g.direct).map(|(l, h)| *l + *h).collect()
+    } else {
+        sharp.clone()
+    };
     if config.denoise {
         log.begin("denoise", 0);
         let texel_size: Vec<f32> = s
@@ -482,18 +487,14 @@ fn gathered_light(
         denoise::atrous(
             s.texels,
             &region,
-            &mut indirect,
+            &mut gathered,
             &g.valid,
             &g.variance,
             &texel_size,
         );
         log.end("denoise");
     }
-    let values = texel_direct
-        .iter()
-        .zip(&indirect)
-        .map(|(d, i)| *d + *i)
-        .collect();
+    let values = sharp.iter().zip(&gathered).map(|(d, i)| *d + *i).collect();
     let directional = (!g.directional.is_empty()).then(|| {
         let punctual = &direct.parts.directional;
         (0..g.directional.len())
