@@ -120,6 +120,19 @@ impl Texels {
         self.owner_base[instance as usize].wrapping_add(chart)
     }
 
+    /// The texel of cell (`x`, `y`) on `page` where it belongs to the
+    /// surface (`instance`, `chart`): [`Texels::lookup`]'s answer for every
+    /// point of the cell, when it is this one (else lookup looks around).
+    #[inline]
+    pub fn cell(&self, page: u32, x: i64, y: i64, instance: u32, chart: u32) -> Option<u32> {
+        if chart == u32::MAX {
+            return None;
+        }
+        let owner = self.owner(instance, chart);
+        self.entry(page, x, y)
+            .and_then(|(t, o)| (o == owner).then_some(t))
+    }
+
     /// The texel holding lightmap point `uv_lm` on `page` for a surface of
     /// (`instance`, `chart`); when rounding puts it just outside its chart,
     /// the nearest texel of that chart in the 3×3 neighbourhood.

@@ -65,17 +65,34 @@ struct Face {
     side: bool,
 }
 
-/// A rasterised pixel: closest depth and triangle.
+/// A rasterised pixel: closest depth, its triangle and the barycentric
+/// weights of the triangle's corners 1 and 2 at the pixel's centre
+/// (perspective-correct), so the pixel lands on its texel without a ray.
 #[derive(Clone, Copy)]
 struct Pixel {
     depth: f32,
     tri: u32,
+    u: f32,
+    v: f32,
 }
 
 const EMPTY: Pixel = Pixel {
     depth: f32::INFINITY,
     tri: u32::MAX,
+    u: 0.0,
+    v: 0.0,
 };
+
+/// A clipped polygon's corner: camera-space position and the barycentric
+/// weights (corners 1, 2) of the original triangle there.
+#[derive(Clone, Copy, Default)]
+struct Corner {
+    cam: Vec3,
+    bary: Vec2,
+}
+
+/// Most corners a triangle clipped by five planes can have.
+const MAX_CORNERS: usize = 8;
 
 /// Rasterises every triangle of the scene onto one face of the hemicube at
 /// `eye`; `buf` is `n × rows`, rows along `up` from `up_min`.
@@ -110,6 +127,8 @@ fn rasterize_face(s: &Surfaces, eye: Vec3, face: &Face, n: u32, buf: &mut [Pixel
         // Clip against the whole frustum (near plane and the four sides,
         // widened by 0.1 % so shared edges are covered), so projected
         // coordinates stay bounded and the f32 edge functions exact enough.
+        // The corners carry their barycentric weights (linear in camera
+        // space, as the clip's interpolation is).
         let e = 1.001;
         let planes = [
             glam::Vec4::new(0.0, 0.0, 1.0, -near),
@@ -122,31 +141,45 @@ fn rasterize_face(s: &Surfaces, eye: Vec3, face: &Face, n: u32, buf: &mut [Pixel
                 glam::Vec4::new(0.0, 1.0, e, 0.0)
             },
         ];
-        let mut poly: Vec<Vec3> = cam.to_vec();
-        let mut next: Vec<Vec3> = Vec::with_capacity(9);
+        let mut poly = [Corner::default(); MAX_CORNERS + 1];
+        let mut next = [Corner::default(); MAX_CORNERS + 1];
+        let bary = [Vec2::ZERO, Vec2::X, Vec2::Y];
+        for k in 0..3 {
+            poly[k] = Corner {
+                cam: cam[k],
+                bary: bary[k],
+            };
+        }
+        let mut len = 3;
         for pl in planes {
-            next.clear();
             let d = |c: Vec3| pl.truncate().dot(c) + pl.w;
-            for k in 0..poly.len() {
-                let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
-                let (da, db) = (d(a), d(b));
-                if da >= 0.0 {
-                    next.push(a);
+            let mut m = 0;
+            for k in 0..len {
+                let (a, b) = (poly[k], poly[(k + 1) % len]);
+                let (da, db) = (d(a.cam), d(b.cam));
+                if da >= 0.0 && m < MAX_CORNERS {
+                    next[m] = a;
+                    m += 1;
                 }
-                if (da >= 0.0) != (db >= 0.0) {
-                    next.push(a + (b - a) * (da / (da - db)));
+                if (da >= 0.0) != (db >= 0.0) && m < MAX_CORNERS {
+                    let f = da / (da - db);
+                    next[m] = Corner {
+                        cam: a.cam + (b.cam - a.cam) * f,
+                        bary: a.bary + (b.bary - a.bary) * f,
+                    };
+                    m += 1;
                 }
             }
             std::mem::swap(&mut poly, &mut next);
-            if poly.len() < 3 {
+            len = m;
+            if len < 3 {
                 break;
             }
         }
-        let len = poly.len();
         if len < 3 {
             continue;
         }
-        let scr: Vec<Vec3> = poly.iter().map(|&c| to_screen(c)).collect();
+        let scr = poly.map(|c| (to_screen(c.cam), c.bary));
         for k in 1..len - 1 {
             raster_triangle(&[scr[0], scr[k], scr[k + 1]], t as u32, n, rows, buf);
         }
@@ -154,43 +187,68 @@ fn rasterize_face(s: &Surfaces, eye: Vec3, face: &Face, n: u32, buf: &mut [Pixel
 }
 
 /// Edge-function rasterisation of one screen-space triangle (x, y in pixels,
-/// z = view depth) with a depth test on 1/z interpolated linearly.
-fn raster_triangle(v: &[Vec3; 3], tri: u32, n: u32, rows: u32, buf: &mut [Pixel]) {
-    let area = (v[1].x - v[0].x) * (v[2].y - v[0].y) - (v[1].y - v[0].y) * (v[2].x - v[0].x);
+/// z = view depth; each corner with its barycentric weights) with a depth
+/// test on 1/z interpolated linearly; the weights are interpolated
+/// perspective-correctly (a / z linear in screen space).
+fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut [Pixel]) {
+    let (a, b, c) = (v[0].0, v[1].0, v[2].0);
+    let area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
     if area.abs() < 1e-12 {
         return;
     }
-    let min_x = v
+    let xs = [a.x, b.x, c.x];
+    let ys = [a.y, b.y, c.y];
+    let min_x = xs
         .iter()
-        .map(|p| p.x)
+        .copied()
         .fold(f32::INFINITY, f32::min)
         .floor()
         .max(0.0) as i64;
-    let max_x = v
+    let max_x = xs
         .iter()
-        .map(|p| p.x)
+        .copied()
         .fold(f32::NEG_INFINITY, f32::max)
         .ceil()
         .min(n as f32) as i64;
-    let min_y = v
+    let min_y = ys
         .iter()
-        .map(|p| p.y)
+        .copied()
         .fold(f32::INFINITY, f32::min)
         .floor()
         .max(0.0) as i64;
-    let max_y = v
+    let max_y = ys
         .iter()
-        .map(|p| p.y)
+        .copied()
         .fold(f32::NEG_INFINITY, f32::max)
         .ceil()
         .min(rows as f32) as i64;
-    let inv_z = v.map(|p| 1.0 / p.z);
+    let inv_z = [1.0 / a.z, 1.0 / b.z, 1.0 / c.z];
+    let bary_z = [v[0].1 * inv_z[0], v[1].1 * inv_z[1], v[2].1 * inv_z[2]];
+    let inv_area = 1.0 / area;
     let edge = |a: Vec3, b: Vec3, p: Vec2| (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x);
+    let edges = [(b, c), (c, a), (a, b)];
     for y in min_y..max_y {
-        for x in min_x..max_x {
+        // The row's span: each edge function is linear in x, so the
+        // pixels inside lie in one interval, found per edge and widened
+        // by a pixel; the exact test below decides each pixel in it.
+        let py = y as f32 + 0.5;
+        let (mut lo, mut hi) = (min_x as f32, max_x as f32);
+        for (ea, eb) in edges {
+            let slope = -(eb.y - ea.y) * inv_area;
+            let at0 = ((eb.x - ea.x) * (py - ea.y) + (eb.y - ea.y) * ea.x) * inv_area;
+            if slope > 0.0 {
+                lo = lo.max(-at0 / slope - 1.5);
+            } else if slope < 0.0 {
+                hi = hi.min(-at0 / slope + 1.5);
+            } else if at0 < 0.0 {
+                hi = lo;
+            }
+        }
+        let (x0, x1) = ((lo.max(min_x as f32)) as i64, (hi.min(max_x as f32)) as i64);
+        for x in x0..x1 {
             let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            let w0 = edge(v[1], v[2], p) / area;
-            let w1 = edge(v[2], v[0], p) / area;
+            let w0 = edge(b, c, p) * inv_area;
+            let w1 = edge(c, a, p) * inv_area;
             let w2 = 1.0 - w0 - w1;
             if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
                 continue;
@@ -199,10 +257,23 @@ fn raster_triangle(v: &[Vec3; 3], tri: u32, n: u32, rows: u32, buf: &mut [Pixel]
             let depth = 1.0 / iz;
             let px = &mut buf[(y as u32 * n + x as u32) as usize];
             if depth < px.depth {
-                *px = Pixel { depth, tri };
+                let uv = (bary_z[0] * w0 + bary_z[1] * w1 + bary_z[2] * w2) * depth;
+                *px = Pixel {
+                    depth,
+                    tri,
+                    u: uv.x,
+                    v: uv.y,
+                };
             }
         }
     }
+}
+
+/// ⌊x⌋ without a libm call (finite x within i64's range).
+#[inline(always)]
+fn floor(x: f32) -> i64 {
+    let i = x as i64;
+    i - i64::from((i as f32) > x)
 }
 
 /// Row i of F by the hemicube, sorted by column.
@@ -250,7 +321,9 @@ pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFac
         },
     ];
     let mut stats = FormFactorStats::default();
-    let mut acc: Vec<(u32, f32)> = Vec::new();
+    // Σ ΔF per patch, dense, and the patches touched (in first-seen order).
+    let mut sums = vec![0.0f32; s.patches.len()];
+    let mut touched: Vec<u32> = Vec::new();
     let mut buf = vec![EMPTY; (n * n) as usize];
     for face in &faces {
         let rows = if face.side { n / 2 } else { n };
@@ -258,37 +331,64 @@ pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFac
         buf[..pixels].fill(EMPTY);
         rasterize_face(s, eye, face, n, &mut buf[..pixels]);
         let weights = if face.side { &cube.side } else { &cube.top };
-        let up_min = if face.side { 0.0 } else { -1.0 };
-        for y in 0..rows {
-            for x in 0..n {
-                let k = (y * n + x) as usize;
-                let px = buf[k];
-                let w = weights[k];
-                stats.rays += 1;
-                if px.tri == u32::MAX {
-                    stats.escaped += 1;
-                    continue;
-                }
-                // Resolve the visible point exactly: the pixel's ray against its triangle.
-                let sx = -1.0 + (x as f32 + 0.5) * 2.0 / n as f32;
-                let sy = up_min + (y as f32 + 0.5) * 2.0 / n as f32;
-                let dir = (face.right * sx + face.up * sy + face.forward).normalize();
-                match s.resolve(px.tri, eye, dir) {
-                    Landing::Texel(tx) => acc.push((s.patches.of_texel[tx as usize].0, w)),
-                    Landing::BackFace => stats.back_faces += 1,
-                    _ => stats.unmapped += 1,
-                }
+        // Runs of pixels show one triangle, and runs of those one lightmap
+        // cell: its side and its cell's patch are looked up once per run.
+        let mut side: Option<(u32, bool)> = None;
+        let mut memo: Option<(u32, i64, i64, u32)> = None;
+        for (k, px) in buf[..pixels].iter().enumerate() {
+            stats.rays += 1;
+            let tri = px.tri;
+            if tri == u32::MAX {
+                stats.escaped += 1;
+                continue;
             }
+            let seen = match side {
+                Some((t, seen)) if t == tri => seen,
+                _ => {
+                    let seen = s.seen_from(tri, eye);
+                    side = Some((tri, seen));
+                    seen
+                }
+            };
+            if !seen {
+                stats.back_faces += 1;
+                continue;
+            }
+            // The visible point, from the pixel's interpolated weights.
+            let uv = s.geometry.uv_lm_at(tri, px.u, px.v);
+            let (cx, cy) = (floor(uv.x), floor(uv.y));
+            let j = match memo {
+                Some((t, x, y, j)) if (t, x, y) == (tri, cx, cy) => j,
+                _ => match s.land_cell(tri, cx, cy) {
+                    Some(tx) => {
+                        let j = s.patches.of_texel[tx as usize].0;
+                        memo = Some((tri, cx, cy, j));
+                        j
+                    }
+                    None => {
+                        let p0 = s.geometry.p_ws[tri as usize][0];
+                        match s.land(tri, px.u, px.v, (p0 - eye).normalize_or(face.forward)) {
+                            Landing::Texel(tx) => s.patches.of_texel[tx as usize].0,
+                            Landing::BackFace => {
+                                stats.back_faces += 1;
+                                continue;
+                            }
+                            _ => {
+                                stats.unmapped += 1;
+                                continue;
+                            }
+                        }
+                    }
+                },
+            };
+            if sums[j as usize] == 0.0 {
+                touched.push(j);
+            }
+            sums[j as usize] += weights[k];
         }
     }
-    acc.sort_unstable_by_key(|e| e.0);
-    let mut out: Vec<(u32, f32)> = Vec::new();
-    for (j, w) in acc {
-        match out.last_mut() {
-            Some((c, f)) if *c == j => *f += w,
-            _ => out.push((j, w)),
-        }
-    }
+    touched.sort_unstable();
+    let out = touched.iter().map(|&j| (j, sums[j as usize])).collect();
     (out, stats)
 }
 
@@ -328,6 +428,8 @@ mod tests {
             Vec3::new(8.0, 8.0, 2.0),
             Vec3::new(0.0, 8.0, 2.0),
         ];
+        let with = |v: [Vec3; 3]| [(v[0], Vec2::ZERO), (v[1], Vec2::X), (v[2], Vec2::Y)];
+        let (a, b) = (with(a), with(b));
         raster_triangle(&a, 0, n, n, &mut buf);
         raster_triangle(&b, 1, n, n, &mut buf);
         assert!(
