@@ -32,6 +32,8 @@
 //!
 //! Deterministic: every voxel's rays are fixed.
 
+pub mod agreement;
+
 use crate::geometry::Geometry;
 use crate::raycast::RayCaster;
 use crate::scene::Scene;
