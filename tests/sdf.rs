@@ -173,57 +173,53 @@ fn open_box_agrees_with_the_closed_one_away_from_the_hole() {
 
 /// Sphere tracing against the BVH on the Cornell box (voxels of 1/128 of
 /// its size): 100,000 rays from random points in its open air, in random
-/// directions; the march hits within one voxel of the BVH's hit (or
-/// misses with it) for ≥ 97 % of them (the issue's target is 99 %).
+/// directions ([`sdf::agreement::random_rays`]); the march hits within one
+/// voxel of the BVH's hit (or misses with it) for ≥ 99 % of them, as the
+/// issue asks. Measured: 99.785 % (97.74 % with the march that stopped
+/// within 0.6 voxel of any surface, which stopped 1,825 rays at edges and
+/// walls they pass and 408 at sign flips). The other 215, by
+/// [`sdf::agreement::Class`]: 151 stop at a surface they pass within about
+/// a quarter voxel of (taken for a sheet); 28 hit about a voxel late, 22
+/// of them on a block (the blocks have no bottom face and the floor faces
+/// into them, so only a shell of their inside is negative, and the field
+/// at their faces reads 0.1–0.3 voxel) and 6 at a wall's edge; 26 go through a surface with no zero crossing
+/// there (19 within half a voxel of a wall's or a block's edge); 5 meet
+/// their surface at under 11.5°; 4 hit within a voxel of the grid's
+/// border; 1 stops at a sign flip in open air. (Sponza at 256 voxels:
+/// 97.76 %, see `examples/sdf_agreement.rs`.)
 #[test]
 fn sphere_tracing_agrees_with_the_bvh() {
+    use sdf::agreement::{compare, random_rays, Class};
     let scene = radbake::scene::load(&scene_path("cornell_box.gltf"), &Default::default()).unwrap();
     let g = radbake::geometry::Geometry::unmapped(&scene);
     let rays = radbake::raycast::RayCaster::new(&scene, &g);
     let bounds = g.bounds().unwrap();
     let voxel = sdf::voxel_for_resolution(bounds, 128);
     let field = sdf::bake(&scene, &g, &rays, Settings { voxel, band: None });
-    let mut rng = radbake::sampling::Stream::new(7, 99, 0);
-    let (mut agree, mut total, mut misses, mut grazing) = (0u32, 0u32, 0u32, 0u32);
-    while total < 100_000 {
-        let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-        let o = bounds.0 + (bounds.1 - bounds.0) * u;
-        if field.sample(o) < 2.0 * voxel {
-            continue; // not in open air
+    let list = random_rays(&field, bounds, 7, 100_000);
+    let mut classes = std::collections::BTreeMap::<Class, u32>::new();
+    let (mut agree, mut misses) = (0u32, 0u32);
+    for &(o, d) in &list {
+        let out = compare(&scene, &g, &rays, &field, o, d);
+        match out.class {
+            None => agree += 1,
+            Some(c) => *classes.entry(c).or_default() += 1,
         }
-        let d = radbake::sampling::to_world(
-            radbake::sampling::cosine_hemisphere(rng.next_vec2()),
-            if rng.next_f32() < 0.5 {
-                Vec3::Y
-            } else {
-                Vec3::NEG_Y
-            },
-        );
-        total += 1;
-        let bvh = rays.closest_hit(o, d, f32::INFINITY).map(|h| h.t);
-        let marched = field.march(o, d, f32::INFINITY);
-        let ok = match (bvh, marched) {
-            (None, None) => true,
-            (Some(a), Some(b)) => (a - b).abs() <= voxel,
-            _ => false,
-        };
-        agree += ok as u32;
-        grazing += (!ok && bvh.is_some_and(|t| t > 0.0) && {
-            let h = rays.closest_hit(o, d, f32::INFINITY).unwrap();
-            g.ng_ws[h.tri as usize].dot(d).abs() < 0.2
-        }) as u32;
-        misses += bvh.is_none() as u32;
+        misses += out.cast.is_none() as u32;
     }
-    let share = agree as f64 / total as f64;
+    let share = agree as f64 / list.len() as f64;
     eprintln!(
-        "{agree} of {total} rays agree ({:.3} %); {misses} BVH misses; of the rest, {grazing} meet their surface at under 11.5° (|cos| < 0.2)",
+        "{agree} of {} rays agree ({:.3} %); {misses} BVH misses; the rest: {classes:?}",
+        list.len(),
         100.0 * share
     );
-    // The issue asks for 99 %; the march finds a surface to a fraction of
-    // a voxel along its normal, which a grazing ray turns into voxels
-    // along itself, and a ray that passes within 0.6 voxel of an edge
-    // stops there (see README, "Distance fields"). Not there yet.
-    assert!(share >= 0.97);
+    assert!(share >= 0.99);
+    // Rays that miss with the BVH, through the box's open front, are
+    // counted: the march must find no surface there either.
+    assert!(misses > 10_000);
+    // A ray in open air is stopped by a sign flip only where the flip
+    // looks like a surface (its gradient a unit vector).
+    assert!(classes.get(&Class::OpenAir).copied().unwrap_or(0) < 50);
 }
 
 /// The same field with 1 and 2 threads, bit for bit; `radbake sdf` writes
@@ -340,7 +336,7 @@ fn bake_option_writes_the_field() {
 /// BVH's primary hit: the means within 1 % and ≥ 95 % of pixels within
 /// 2 % (the rest lie on silhouettes and edges); the rendered image
 /// (16 jittered rays per pixel) against the path-traced final pass: means
-/// within 5 % (+3.1 %: the lamp's edge).
+/// within 5 % (+2.3 %: the lamp's edge).
 #[test]
 fn sphere_traced_render_matches_the_bvh() {
     use radbake::trace::render::{render, Integrator, View};
