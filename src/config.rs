@@ -105,6 +105,44 @@ impl Ktx2Mode {
     }
 }
 
+/// The texel format of the signed distance field's KTX2 file
+/// ([`crate::output::sdf`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase", try_from = "String")]
+pub enum SdfFormat {
+    /// `R16_SFLOAT`: half floats, within 2⁻¹¹ of each distance (a
+    /// millimetre at 2 m, 5 cm at 100 m), half the size.
+    R16f,
+    /// `R32_SFLOAT`: the distances as baked.
+    #[default]
+    R32f,
+}
+
+impl SdfFormat {
+    /// The Vulkan format's name, as `manifest.json`'s `sdf.format` gives it.
+    pub fn vk_name(self) -> &'static str {
+        match self {
+            SdfFormat::R16f => "R16_SFLOAT",
+            SdfFormat::R32f => "R32_SFLOAT",
+        }
+    }
+}
+
+impl TryFrom<String> for SdfFormat {
+    type Error = String;
+
+    /// `r16f` or `r32f`; anything else is an error naming the key.
+    fn try_from(s: String) -> std::result::Result<Self, String> {
+        match s.as_str() {
+            "r16f" => Ok(SdfFormat::R16f),
+            "r32f" => Ok(SdfFormat::R32f),
+            _ => Err(format!(
+                "sdf_format = \"{s}\": the distance field's format is \"r16f\" or \"r32f\""
+            )),
+        }
+    }
+}
+
 /// How texel values are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -234,6 +272,8 @@ pub struct BakeConfig {
     /// with this many voxels along the scene's longest side (0: none;
     /// at most 2048).
     pub sdf: u32,
+    /// The distance field's texel format: `r16f` (half floats) or `r32f`.
+    pub sdf_format: SdfFormat,
     /// Directional lightmaps (needs the final gather).
     pub directional: DirectionalMode,
     /// Ambient-occlusion distance in metres (0: no AO map; needs the final gather).
@@ -427,6 +467,7 @@ impl BakeConfig {
             probe_budget: 16_384,
             probe_rays: 256,
             sdf: 0,
+            sdf_format: SdfFormat::R32f,
             directional: DirectionalMode::None,
             ao_distance: 0.0,
             supersample: 1,
@@ -665,5 +706,21 @@ mod tests {
         }
         let ok = BakeConfig::from_toml("backface_tolerance = 0.1\nburial_planes = false").unwrap();
         assert!(!ok.burial_planes && ok.backface_tolerance == 0.1);
+    }
+
+    #[test]
+    fn sdf_format_is_r16f_or_r32f() {
+        assert_eq!(BakeConfig::default().sdf_format, SdfFormat::R32f);
+        let c = BakeConfig::from_toml("sdf = 64\nsdf_format = \"r16f\"").unwrap();
+        assert_eq!(c.sdf_format, SdfFormat::R16f);
+        let err = BakeConfig::from_toml("sdf_format = \"r8\"").unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("sdf_format") && text.contains("r16f") && text.contains("r32f"),
+            "{text}"
+        );
+        // Written back as it is read.
+        let all = toml::to_string(&c).unwrap();
+        assert!(all.contains("sdf_format = \"r16f\""), "{all}");
     }
 }

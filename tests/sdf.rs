@@ -280,6 +280,98 @@ fn deterministic_and_written() {
     assert!(stderr.contains("--voxel-size"), "{stderr}");
 }
 
+/// `radbake sdf --format r16f` writes the field as `R16_SFLOAT`: every
+/// texel the R32F file's value rounded to a half float (within 2⁻¹¹ of
+/// it, 2⁻²⁵ near 0), in a smaller file; the sidecar says which format.
+/// `bake --sdf-format r16f` writes the same in `sdf.ktx2` and says so in
+/// the manifest; a bad format is an error naming the values.
+#[test]
+fn r16f_is_the_field_in_half_floats() {
+    let (p, i) = sphere(1.0, 16, 32, false);
+    let path = mesh_scene("sdf-r16f", &p, &i);
+    let dir = temp_dir("sdf-r16f-out");
+    let write = |format: &str| {
+        let out = dir.join(format!("{format}.ktx2"));
+        common::run_ok::<_, std::ffi::OsString>([
+            "sdf".into(),
+            "-q".into(),
+            "--resolution".into(),
+            "40".into(),
+            "--format".into(),
+            format.into(),
+            "--out".into(),
+            std::ffi::OsString::from(&out),
+            std::ffi::OsString::from(&path),
+        ]);
+        out
+    };
+    let (full, half) = (write("r32f"), write("r16f"));
+    let (h32, raw32) = common::ktx2_level(&full);
+    let (h16, raw16) = common::ktx2_level(&half);
+    assert_eq!(h16.format, Some(ktx2::Format::R16_SFLOAT));
+    assert_eq!(h32.format, Some(ktx2::Format::R32_SFLOAT));
+    assert_eq!(
+        [h16.pixel_width, h16.pixel_height, h16.pixel_depth],
+        [h32.pixel_width, h32.pixel_height, h32.pixel_depth]
+    );
+    let (f32s, f16s) = (floats(&raw32), halves(&raw16));
+    assert_eq!(f32s.len(), f16s.len());
+    let mut worst = 0.0f32;
+    for (a, b) in f32s.iter().zip(&f16s) {
+        let bound = a.abs() / 2048.0 + 2f32.powi(-25);
+        assert!((a - b).abs() <= bound, "{a} -> {b}");
+        assert_eq!(*a < 0.0, *b < 0.0, "sign of {a} -> {b}");
+        worst = worst.max((a - b).abs());
+    }
+    eprintln!(
+        "{} texels; worst half-float error {worst:.2e} m",
+        f32s.len()
+    );
+    assert!(std::fs::metadata(&half).unwrap().len() < std::fs::metadata(&full).unwrap().len());
+    let sidecar = |p: &std::path::Path| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(p.with_extension("json")).unwrap()).unwrap()
+    };
+    assert_eq!(sidecar(&half)["sdf"]["format"], "R16_SFLOAT");
+    assert_eq!(sidecar(&full)["sdf"]["format"], "R32_SFLOAT");
+
+    let out = dir.join("bake");
+    common::run_ok::<_, std::ffi::OsString>([
+        "bake".into(),
+        "-q".into(),
+        "--force".into(),
+        "--texels-per-meter".into(),
+        "4".into(),
+        "--probes".into(),
+        "off".into(),
+        "--sdf".into(),
+        "40".into(),
+        "--sdf-format".into(),
+        "r16f".into(),
+        std::ffi::OsString::from(&path),
+        std::ffi::OsString::from("--out"),
+        std::ffi::OsString::from(&out),
+    ]);
+    let (hb, rawb) = common::ktx2_level(&out.join("sdf.ktx2"));
+    assert_eq!(hb.format, Some(ktx2::Format::R16_SFLOAT));
+    assert_eq!(halves(&rawb).len(), f16s.len());
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["sdf"]["format"], "R16_SFLOAT");
+
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(["sdf", "-q", "--format", "r8", "--out"])
+        .arg(dir.join("bad.ktx2"))
+        .arg(&path)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("r16f") && stderr.contains("r32f"),
+        "{stderr}"
+    );
+}
+
 /// `radbake bake --sdf 24` writes `sdf.ktx2` and the manifest's `sdf`
 /// entry: the same field as `radbake sdf --resolution 24` (within float
 /// rounding: the bake's triangles come through its atlas).
@@ -417,6 +509,13 @@ fn sphere_traced_render_matches_the_bvh() {
     // emission (the nearest triangle short of the hit), a bright halo of
     // a voxel; so a looser bound for the whole image.
     assert!(rel(marched.mean(), fin.mean()) < 0.05);
+}
+
+/// Little-endian half floats, widened.
+fn halves(raw: &[u8]) -> Vec<f32> {
+    raw.chunks_exact(2)
+        .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32())
+        .collect()
 }
 
 /// Little-endian f32s.

@@ -1,6 +1,6 @@
 //! `radbake sdf`: the level's signed distance field ([`radbake::sdf`]) as
-//! a KTX2 3D texture (`R32_SFLOAT`, metres) and a JSON sidecar with its
-//! world transform.
+//! a KTX2 3D texture (`R32_SFLOAT` or `R16_SFLOAT`, metres) and a JSON
+//! sidecar with its world transform.
 
 use super::{lib_err, Outcome};
 use clap::Args;
@@ -23,6 +23,9 @@ pub struct SdfArgs {
     /// Clamp distances at this many voxels (a narrow band; ≥ 2) [default: none].
     #[arg(long, value_name = "VOXELS")]
     pub band: Option<f32>,
+    /// Texel format: r32f (32-bit floats) or r16f (half floats, half the size).
+    #[arg(long, value_enum, default_value = "r32f")]
+    pub format: radbake::config::SdfFormat,
     /// Print nothing but errors.
     #[arg(long, short)]
     pub quiet: bool,
@@ -72,7 +75,8 @@ pub fn run(args: &SdfArgs) -> Outcome {
     let baked = Instant::now();
     let sdf = radbake::sdf::bake(&scene, &geometry, &rays, settings);
     let seconds = baked.elapsed().as_secs_f64();
-    let files = radbake::output::sdf::write(&args.out, &sdf, args.band).map_err(lib_err)?;
+    let files =
+        radbake::output::sdf::write(&args.out, &sdf, args.band, args.format).map_err(lib_err)?;
     if !args.quiet {
         let [x, y, z] = sdf.grid.dims;
         let n = sdf.grid.len() as f64;
