@@ -30,10 +30,14 @@
 //!   the field crosses (negative behind it), and sphere tracing finds it
 //!   at the zero crossing.
 //!
+//! The grid covers the scene's bounds, or the union of its probe volumes'
+//! boxes ([`bounds`], [`SdfBounds`]): where dynamic objects go.
+//!
 //! Deterministic: every voxel's rays are fixed.
 
 pub mod agreement;
 
+use crate::config::SdfBounds;
 use crate::geometry::Geometry;
 use crate::raycast::RayCaster;
 use crate::scene::Scene;
@@ -363,9 +367,38 @@ pub fn voxel_for_resolution(bounds: (Vec3, Vec3), resolution: u32) -> f32 {
     (bounds.1 - bounds.0).max_element().max(1e-6) / resolution.max(1) as f32
 }
 
-/// Bakes the field of `geometry` (its triangles as `rays` holds them).
+/// The box a field covers ([`SdfBounds`]): the scene's bounds (its
+/// triangles'), or the union of its probe volumes' world boxes
+/// ([`crate::probes::VolumeSpec::world_bounds`]). None where there is
+/// nothing to cover (no triangle, no probe volume).
+pub fn bounds(scene: &Scene, geometry: &Geometry, over: SdfBounds) -> Option<(Vec3, Vec3)> {
+    match over {
+        SdfBounds::Scene => geometry.bounds(),
+        SdfBounds::ProbeVolumes => scene
+            .probe_volumes
+            .iter()
+            .map(|v| v.world_bounds())
+            .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1))),
+    }
+}
+
+/// Bakes the field of `geometry` (its triangles as `rays` holds them)
+/// over the scene's bounds.
 pub fn bake(scene: &Scene, geometry: &Geometry, rays: &RayCaster, settings: Settings) -> Sdf {
     let bounds = geometry.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
+    bake_over(scene, geometry, rays, bounds, settings)
+}
+
+/// Bakes the field over `bounds` (min, max; [`Grid::over`] adds a voxel
+/// of margin): distances and signs still from every triangle of
+/// `geometry`, inside the box or not.
+pub fn bake_over(
+    scene: &Scene,
+    geometry: &Geometry,
+    rays: &RayCaster,
+    bounds: (Vec3, Vec3),
+    settings: Settings,
+) -> Sdf {
     let grid = Grid::over(bounds, settings.voxel);
     let band = settings.band.map(|b| b * settings.voxel);
     let nearest = distances(&grid, rays, band);

@@ -372,6 +372,175 @@ fn r16f_is_the_field_in_half_floats() {
     );
 }
 
+/// A closed box (|x|, |y|, |z| ≤ 1), a floor under it and a one-sided wall
+/// at x = 1.6 facing it, with one probe volume over [−0.3, 1.3] ×
+/// [−0.6, 0.4] × [−1.3, 0.7] (through the box's +x side, short of the
+/// wall), written as a glTF scene `name`.
+fn volume_scene(name: &str) -> std::path::PathBuf {
+    let mut b = GltfBuilder::default();
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = cube(1.0, false);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("box", m);
+    let (p, i) = quad([-3.0, -1.5, -3.0], [0.0, 0.0, 6.0], [6.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let (p, i) = quad([1.6, -1.5, -3.0], [0.0, 0.0, 6.0], [0.0, 2.5, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("wall", m);
+    let mut doc = b.json();
+    doc["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({
+            "name": "volume", "translation": [0.5, -0.1, -0.3], "scale": [1.6, 1.0, 2.0],
+            "extras": {"radbake": {"probe_volume": {"spacing": 0.5}}}
+        }));
+    let n = doc["nodes"].as_array().unwrap().len();
+    doc["scenes"][0]["nodes"] = serde_json::json!((0..n).collect::<Vec<_>>());
+    let path = temp_dir(name).join("volume.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+/// A field over the probe volume (`--bounds probe-volumes`): its grid is
+/// the volume's box with [`sdf::Grid::over`]'s voxel of margin, and its
+/// values are the whole scene's field's at the same points (the two grids
+/// line up here: the box's corner is whole voxels from the scene's), to
+/// 10⁻⁴ m, voxel by voxel and trilinear at random points; distances
+/// measure to triangles outside the box (the wall). `radbake sdf
+/// --bounds probe-volumes` writes that field; without a probe volume,
+/// `--bounds probe-volumes` and `bake --sdf-bounds probe-volumes` are
+/// errors naming the option.
+#[test]
+fn field_over_the_probe_volumes() {
+    use radbake::config::SdfBounds;
+    let path = volume_scene("sdf-volume");
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let g = radbake::geometry::Geometry::unmapped(&scene);
+    let rays = radbake::raycast::RayCaster::new(&scene, &g);
+    let voxel = 0.1;
+    let settings = Settings { voxel, band: None };
+    let whole = sdf::bake(&scene, &g, &rays, settings);
+    let (lo, hi) = sdf::bounds(&scene, &g, SdfBounds::ProbeVolumes).unwrap();
+    assert!(
+        (lo - Vec3::new(-0.3, -0.6, -1.3)).abs().max_element() < 1e-5,
+        "{lo}"
+    );
+    assert!(
+        (hi - Vec3::new(1.3, 0.4, 0.7)).abs().max_element() < 1e-5,
+        "{hi}"
+    );
+    let part = sdf::bake_over(&scene, &g, &rays, (lo, hi), settings);
+    let gr = part.grid;
+    let top = gr.origin + Vec3::from(gr.dims.map(|d| d as f32)) * voxel;
+    assert!((gr.origin - (lo - Vec3::splat(voxel))).abs().max_element() < 1e-5);
+    assert!(top.cmpge(hi + Vec3::splat(voxel - 1e-5)).all(), "{top}");
+    assert!(top.cmplt(hi + Vec3::splat(2.0 * voxel)).all(), "{top}");
+    assert!(part.grid.len() * 10 < whole.grid.len());
+
+    // Voxel by voxel: the scene's grid's voxel at the same centre.
+    let shift = (gr.origin - whole.grid.origin) / voxel;
+    assert!(
+        (shift - shift.round()).abs().max_element() < 1e-3,
+        "{shift}"
+    );
+    let [sx, sy, sz] = shift.round().to_array().map(|v| v as usize);
+    let [wx, wy, _] = whole.grid.dims.map(|d| d as usize);
+    let (mut worst, mut inside, mut to_wall) = (0.0f32, 0, 0);
+    for i in 0..gr.len() {
+        let [x, y, z] = gr.xyz(i).map(|v| v as usize);
+        let j = (x + sx) + wx * ((y + sy) + wy * (z + sz));
+        assert!((gr.centre(i) - whole.grid.centre(j)).length() < 1e-4);
+        let (a, b) = (part.distance[i], whole.distance[j]);
+        worst = worst.max((a - b).abs());
+        inside += (a < 0.0) as u32;
+        // Nearer the wall (outside the box) than the box or the floor.
+        let c = gr.centre(i);
+        to_wall += ((a - (1.6 - c.x)).abs() < 1e-4 && 1.6 - c.x < c.x - 1.0) as u32;
+    }
+    // At random points, trilinear.
+    let mut rng = radbake::sampling::Stream::new(3, 5, 0);
+    for _ in 0..1000 {
+        let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let p = lo + (hi - lo) * u;
+        worst = worst.max((part.sample(p) - whole.sample(p)).abs());
+    }
+    eprintln!(
+        "{:?} voxels over the volume ({} over the scene); worst difference {worst:.2e} m; {inside} inside the box, {to_wall} nearest the wall",
+        gr.dims,
+        whole.grid.len()
+    );
+    assert!(worst < 1e-4, "worst difference {worst}");
+    assert!(inside > 100 && to_wall > 100);
+
+    // `radbake sdf --bounds probe-volumes`.
+    let out = temp_dir("sdf-volume-out").join("field.ktx2");
+    common::run_ok::<_, std::ffi::OsString>([
+        "sdf".into(),
+        "-q".into(),
+        "--bounds".into(),
+        "probe-volumes".into(),
+        "--voxel-size".into(),
+        "0.1".into(),
+        "--out".into(),
+        std::ffi::OsString::from(&out),
+        std::ffi::OsString::from(&path),
+    ]);
+    let (h, raw) = common::ktx2_level(&out);
+    assert_eq!([h.pixel_width, h.pixel_height, h.pixel_depth], gr.dims);
+    assert_eq!(floats(&raw), part.distance);
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.with_extension("json")).unwrap()).unwrap();
+    assert_eq!(
+        json["sdf"]["origin"],
+        serde_json::json!(gr.origin.to_array())
+    );
+
+    // No probe volume: errors naming the option.
+    let (p, i) = sphere(1.0, 8, 16, false);
+    let bare = mesh_scene("sdf-volume-none", &p, &i);
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
+            .args(args)
+            .arg(&bare)
+            .output()
+            .unwrap();
+        assert!(!o.status.success());
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let none = out.with_file_name("none.ktx2");
+    let e = run(&[
+        "sdf",
+        "-q",
+        "--bounds",
+        "probe-volumes",
+        "--out",
+        none.to_str().unwrap(),
+    ]);
+    assert!(
+        e.trim().lines().count() == 1 && e.contains("--bounds"),
+        "{e}"
+    );
+    assert!(e.contains("no probe volume"), "{e}");
+    let bake_out = out.with_file_name("bake");
+    let e = run(&[
+        "bake",
+        "-q",
+        "--force",
+        "--sdf",
+        "8",
+        "--sdf-bounds",
+        "probe-volumes",
+        "--out",
+        bake_out.to_str().unwrap(),
+    ]);
+    assert!(
+        e.contains("sdf_bounds") && e.contains("no probe volume"),
+        "{e}"
+    );
+}
+
 /// `radbake bake --sdf 24` writes `sdf.ktx2` and the manifest's `sdf`
 /// entry: the same field as `radbake sdf --resolution 24` (within float
 /// rounding: the bake's triangles come through its atlas).

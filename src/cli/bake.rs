@@ -129,6 +129,9 @@ pub struct BakeArgs {
     /// The distance field's texel format: r32f or r16f (half floats) [default: r32f].
     #[arg(long, value_enum)]
     pub sdf_format: Option<radbake::config::SdfFormat>,
+    /// What the distance field covers: the scene, or the union of its probe volumes' boxes [default: scene].
+    #[arg(long, value_enum)]
+    pub sdf_bounds: Option<radbake::config::SdfBounds>,
     /// Adaptive gather: a texel stops at 32, 64, … rays once its estimated relative
     /// standard error is at most this; 0 casts every ray [default: 0.005].
     #[arg(long)]
@@ -274,6 +277,7 @@ impl BakeArgs {
             probe_rays,
             sdf,
             sdf_format,
+            sdf_bounds,
             stitch_seams,
             burial_planes,
             backface_tolerance,
