@@ -3,9 +3,9 @@
 //! casts `rays` random rays from its open air (as `tests/sdf.rs` does on
 //! the Cornell box: [`radbake::sdf::agreement::random_rays`]) both ways,
 //! and prints the share that agree (both miss, or hit within one voxel),
-//! the rest by class ([`radbake::sdf::agreement::Class`]), the grid, the
-//! bake's time and the process's peak memory. A measurement, not a test:
-//! Sponza is not in the repository.
+//! the rest by class ([`radbake::sdf::agreement::Class`]) with the
+//! materials where they part, the grid, the bake's time and memory. A
+//! measurement, not a test: Sponza is not in the repository.
 //!
 //!     mkdir -p /tmp/spz && cp -rL /work/shared/scenes/real/sponza/* /tmp/spz/
 //!     cargo run --release --no-default-features --example sdf_agreement -- \
@@ -36,17 +36,22 @@ fn main() -> anyhow::Result<()> {
     let rays = radbake::raycast::RayCaster::new(&scene, &g);
     let bounds = g.bounds().ok_or_else(|| anyhow::anyhow!("no triangles"))?;
     let voxel = sdf::voxel_for_resolution(bounds, resolution);
+    // The peak from here on is the bake's (Linux: writing 5 to
+    // clear_refs resets VmHWM to the current RSS).
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+    let before = memory("VmRSS:");
     let start = Instant::now();
     let field = sdf::bake(&scene, &g, &rays, Settings { voxel, band: None });
     let seconds = start.elapsed().as_secs_f64();
     let [x, y, z] = field.grid.dims;
     println!(
-        "{path}: {} triangles; {x} × {y} × {z} = {} voxels of {voxel:.4} m baked in {seconds:.2} s ({} threads, {} sign rays); peak memory {}",
+        "{path}: {} triangles; {x} × {y} × {z} = {} voxels of {voxel:.4} m baked in {seconds:.2} s ({} threads, {} sign rays); memory {} before the bake (scene, BVH), peak {} during it",
         g.len(),
         field.grid.len(),
         rayon::current_num_threads(),
         field.rays,
-        peak_memory()
+        before,
+        memory("VmHWM:")
     );
     let start = Instant::now();
     let list = random_rays(&field, bounds, seed, n);
@@ -99,14 +104,15 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The process's peak resident memory (Linux's `VmHWM`), or "unknown".
-fn peak_memory() -> String {
+/// A line of `/proc/self/status` (`VmRSS:` now, `VmHWM:` the peak), or
+/// "unknown".
+fn memory(key: &str) -> String {
     std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
             s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .map(|l| l["VmHWM:".len()..].trim().to_owned())
+                .find(|l| l.starts_with(key))
+                .map(|l| l[key.len()..].trim().to_owned())
         })
         .unwrap_or_else(|| "unknown".into())
 }
