@@ -105,6 +105,85 @@ impl Ktx2Mode {
     }
 }
 
+/// The texel format of the signed distance field's KTX2 file
+/// ([`crate::output::sdf`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase", try_from = "String")]
+pub enum SdfFormat {
+    /// `R16_SFLOAT`: half floats, within 2⁻¹¹ of each distance (a
+    /// millimetre at 2 m, 5 cm at 100 m), half the size.
+    R16f,
+    /// `R32_SFLOAT`: the distances as baked.
+    #[default]
+    R32f,
+}
+
+impl SdfFormat {
+    /// The Vulkan format's name, as `manifest.json`'s `sdf.format` gives it.
+    pub fn vk_name(self) -> &'static str {
+        match self {
+            SdfFormat::R16f => "R16_SFLOAT",
+            SdfFormat::R32f => "R32_SFLOAT",
+        }
+    }
+}
+
+impl TryFrom<String> for SdfFormat {
+    type Error = String;
+
+    /// `r16f` or `r32f`; anything else is an error naming the key.
+    fn try_from(s: String) -> std::result::Result<Self, String> {
+        match s.as_str() {
+            "r16f" => Ok(SdfFormat::R16f),
+            "r32f" => Ok(SdfFormat::R32f),
+            _ => Err(format!(
+                "sdf_format = \"{s}\": the distance field's format is \"r16f\" or \"r32f\""
+            )),
+        }
+    }
+}
+
+/// What the signed distance field's grid covers ([`crate::sdf::bounds`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(try_from = "String")]
+pub enum SdfBounds {
+    /// The scene's bounds: every triangle.
+    #[default]
+    #[serde(rename = "scene")]
+    Scene,
+    /// The union of the probe volumes' boxes (nodes with
+    /// `extras.radbake.probe_volume`), where dynamic objects go: the same
+    /// voxels over less space. Distances still measure to every triangle.
+    #[serde(rename = "probe-volumes")]
+    #[value(name = "probe-volumes")]
+    ProbeVolumes,
+}
+
+impl SdfBounds {
+    /// The value's name (`bake.toml`, the command line, `manifest.json`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SdfBounds::Scene => "scene",
+            SdfBounds::ProbeVolumes => "probe-volumes",
+        }
+    }
+}
+
+impl TryFrom<String> for SdfBounds {
+    type Error = String;
+
+    /// `scene` or `probe-volumes`; anything else is an error naming the key.
+    fn try_from(s: String) -> std::result::Result<Self, String> {
+        match s.as_str() {
+            "scene" => Ok(SdfBounds::Scene),
+            "probe-volumes" => Ok(SdfBounds::ProbeVolumes),
+            _ => Err(format!(
+                "sdf_bounds = \"{s}\": the distance field covers \"scene\" or \"probe-volumes\""
+            )),
+        }
+    }
+}
+
 /// How texel values are computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
@@ -231,9 +310,16 @@ pub struct BakeConfig {
     /// Rays per probe (a spherical Fibonacci set).
     pub probe_rays: u32,
     /// Also bake the signed distance field (`sdf.ktx2`, see [`crate::sdf`])
-    /// with this many voxels along the scene's longest side (0: none;
-    /// at most 2048).
+    /// with this many voxels along the longest side of what it covers
+    /// (`sdf_bounds`: the scene, or its probe volumes; 0: none; at most
+    /// 2048).
     pub sdf: u32,
+    /// The distance field's texel format: `r16f` (half floats) or `r32f`.
+    pub sdf_format: SdfFormat,
+    /// What the distance field's grid covers: `scene`, or `probe-volumes`
+    /// (the union of the probe volumes' boxes; an error where the scene
+    /// has none). `sdf` voxels go along the longest side of that box.
+    pub sdf_bounds: SdfBounds,
     /// Directional lightmaps (needs the final gather).
     pub directional: DirectionalMode,
     /// Ambient-occlusion distance in metres (0: no AO map; needs the final gather).
@@ -427,6 +513,8 @@ impl BakeConfig {
             probe_budget: 16_384,
             probe_rays: 256,
             sdf: 0,
+            sdf_format: SdfFormat::R32f,
+            sdf_bounds: SdfBounds::Scene,
             directional: DirectionalMode::None,
             ao_distance: 0.0,
             supersample: 1,
@@ -665,5 +753,37 @@ mod tests {
         }
         let ok = BakeConfig::from_toml("backface_tolerance = 0.1\nburial_planes = false").unwrap();
         assert!(!ok.burial_planes && ok.backface_tolerance == 0.1);
+    }
+
+    #[test]
+    fn sdf_format_is_r16f_or_r32f() {
+        assert_eq!(BakeConfig::default().sdf_format, SdfFormat::R32f);
+        let c = BakeConfig::from_toml("sdf = 64\nsdf_format = \"r16f\"").unwrap();
+        assert_eq!(c.sdf_format, SdfFormat::R16f);
+        let err = BakeConfig::from_toml("sdf_format = \"r8\"").unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("sdf_format") && text.contains("r16f") && text.contains("r32f"),
+            "{text}"
+        );
+        // Written back as it is read.
+        let all = toml::to_string(&c).unwrap();
+        assert!(all.contains("sdf_format = \"r16f\""), "{all}");
+    }
+
+    #[test]
+    fn sdf_bounds_is_scene_or_probe_volumes() {
+        assert_eq!(BakeConfig::default().sdf_bounds, SdfBounds::Scene);
+        let c = BakeConfig::from_toml("sdf_bounds = \"probe-volumes\"").unwrap();
+        assert_eq!(c.sdf_bounds, SdfBounds::ProbeVolumes);
+        let all = toml::to_string(&c).unwrap();
+        assert!(all.contains("sdf_bounds = \"probe-volumes\""), "{all}");
+        assert_eq!(BakeConfig::from_toml(&all).unwrap(), c);
+        let err = BakeConfig::from_toml("sdf_bounds = \"volumes\"").unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.contains("sdf_bounds") && text.contains("probe-volumes"),
+            "{text}"
+        );
     }
 }

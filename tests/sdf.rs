@@ -209,57 +209,53 @@ fn open_box_agrees_with_the_closed_one_away_from_the_hole() {
 
 /// Sphere tracing against the BVH on the Cornell box (voxels of 1/128 of
 /// its size): 100,000 rays from random points in its open air, in random
-/// directions; the march hits within one voxel of the BVH's hit (or
-/// misses with it) for ≥ 97 % of them (the issue's target is 99 %).
+/// directions ([`sdf::agreement::random_rays`]); the march hits within one
+/// voxel of the BVH's hit (or misses with it) for ≥ 99 % of them, as the
+/// issue asks. Measured: 99.785 % (97.74 % with the march that stopped
+/// within 0.6 voxel of any surface, which stopped 1,825 rays at edges and
+/// walls they pass and 408 at sign flips). The other 215, by
+/// [`sdf::agreement::Class`]: 151 stop at a surface they pass within about
+/// a quarter voxel of (taken for a sheet); 28 hit about a voxel late, 22
+/// of them on a block (the blocks have no bottom face and the floor faces
+/// into them, so only a shell of their inside is negative, and the field
+/// at their faces reads 0.1–0.3 voxel) and 6 at a wall's edge; 26 go through a surface with no zero crossing
+/// there (19 within half a voxel of a wall's or a block's edge); 5 meet
+/// their surface at under 11.5°; 4 hit within a voxel of the grid's
+/// border; 1 stops at a sign flip in open air. (Sponza at 256 voxels:
+/// 97.76 %, see `examples/sdf_agreement.rs`.)
 #[test]
 fn sphere_tracing_agrees_with_the_bvh() {
+    use sdf::agreement::{compare, random_rays, Class};
     let scene = radbake::scene::load(&scene_path("cornell_box.gltf"), &Default::default()).unwrap();
     let g = radbake::geometry::Geometry::unmapped(&scene);
     let rays = radbake::raycast::RayCaster::new(&scene, &g);
     let bounds = g.bounds().unwrap();
     let voxel = sdf::voxel_for_resolution(bounds, 128);
     let field = sdf::bake(&scene, &g, &rays, Settings { voxel, band: None });
-    let mut rng = radbake::sampling::Stream::new(7, 99, 0);
-    let (mut agree, mut total, mut misses, mut grazing) = (0u32, 0u32, 0u32, 0u32);
-    while total < 100_000 {
-        let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-        let o = bounds.0 + (bounds.1 - bounds.0) * u;
-        if field.sample(o) < 2.0 * voxel {
-            continue; // not in open air
+    let list = random_rays(&field, bounds, 7, 100_000);
+    let mut classes = std::collections::BTreeMap::<Class, u32>::new();
+    let (mut agree, mut misses) = (0u32, 0u32);
+    for &(o, d) in &list {
+        let out = compare(&scene, &g, &rays, &field, o, d);
+        match out.class {
+            None => agree += 1,
+            Some(c) => *classes.entry(c).or_default() += 1,
         }
-        let d = radbake::sampling::to_world(
-            radbake::sampling::cosine_hemisphere(rng.next_vec2()),
-            if rng.next_f32() < 0.5 {
-                Vec3::Y
-            } else {
-                Vec3::NEG_Y
-            },
-        );
-        total += 1;
-        let bvh = rays.closest_hit(o, d, f32::INFINITY).map(|h| h.t);
-        let marched = field.march(o, d, f32::INFINITY);
-        let ok = match (bvh, marched) {
-            (None, None) => true,
-            (Some(a), Some(b)) => (a - b).abs() <= voxel,
-            _ => false,
-        };
-        agree += ok as u32;
-        grazing += (!ok && bvh.is_some_and(|t| t > 0.0) && {
-            let h = rays.closest_hit(o, d, f32::INFINITY).unwrap();
-            g.ng_ws[h.tri as usize].dot(d).abs() < 0.2
-        }) as u32;
-        misses += bvh.is_none() as u32;
+        misses += out.cast.is_none() as u32;
     }
-    let share = agree as f64 / total as f64;
+    let share = agree as f64 / list.len() as f64;
     eprintln!(
-        "{agree} of {total} rays agree ({:.3} %); {misses} BVH misses; of the rest, {grazing} meet their surface at under 11.5° (|cos| < 0.2)",
+        "{agree} of {} rays agree ({:.3} %); {misses} BVH misses; the rest: {classes:?}",
+        list.len(),
         100.0 * share
     );
-    // The issue asks for 99 %; the march finds a surface to a fraction of
-    // a voxel along its normal, which a grazing ray turns into voxels
-    // along itself, and a ray that passes within 0.6 voxel of an edge
-    // stops there (see README, "Distance fields"). Not there yet.
-    assert!(share >= 0.97);
+    assert!(share >= 0.99);
+    // Rays that miss with the BVH, through the box's open front, are
+    // counted: the march must find no surface there either.
+    assert!(misses > 10_000);
+    // A ray in open air is stopped by a sign flip only where the flip
+    // looks like a surface (its gradient a unit vector).
+    assert!(classes.get(&Class::OpenAir).copied().unwrap_or(0) < 50);
 }
 
 /// The same field with 1 and 2 threads, bit for bit; `radbake sdf` writes
@@ -320,6 +316,267 @@ fn deterministic_and_written() {
     assert!(stderr.contains("--voxel-size"), "{stderr}");
 }
 
+/// `radbake sdf --format r16f` writes the field as `R16_SFLOAT`: every
+/// texel the R32F file's value rounded to a half float (within 2⁻¹¹ of
+/// it, 2⁻²⁵ near 0), in a smaller file; the sidecar says which format.
+/// `bake --sdf-format r16f` writes the same in `sdf.ktx2` and says so in
+/// the manifest; a bad format is an error naming the values.
+#[test]
+fn r16f_is_the_field_in_half_floats() {
+    let (p, i) = sphere(1.0, 16, 32, false);
+    let path = mesh_scene("sdf-r16f", &p, &i);
+    let dir = temp_dir("sdf-r16f-out");
+    let write = |format: &str| {
+        let out = dir.join(format!("{format}.ktx2"));
+        common::run_ok::<_, std::ffi::OsString>([
+            "sdf".into(),
+            "-q".into(),
+            "--resolution".into(),
+            "40".into(),
+            "--format".into(),
+            format.into(),
+            "--out".into(),
+            std::ffi::OsString::from(&out),
+            std::ffi::OsString::from(&path),
+        ]);
+        out
+    };
+    let (full, half) = (write("r32f"), write("r16f"));
+    let (h32, raw32) = common::ktx2_level(&full);
+    let (h16, raw16) = common::ktx2_level(&half);
+    assert_eq!(h16.format, Some(ktx2::Format::R16_SFLOAT));
+    assert_eq!(h32.format, Some(ktx2::Format::R32_SFLOAT));
+    assert_eq!(
+        [h16.pixel_width, h16.pixel_height, h16.pixel_depth],
+        [h32.pixel_width, h32.pixel_height, h32.pixel_depth]
+    );
+    let (f32s, f16s) = (floats(&raw32), halves(&raw16));
+    assert_eq!(f32s.len(), f16s.len());
+    let mut worst = 0.0f32;
+    for (a, b) in f32s.iter().zip(&f16s) {
+        let bound = a.abs() / 2048.0 + 2f32.powi(-25);
+        assert!((a - b).abs() <= bound, "{a} -> {b}");
+        assert_eq!(*a < 0.0, *b < 0.0, "sign of {a} -> {b}");
+        worst = worst.max((a - b).abs());
+    }
+    eprintln!(
+        "{} texels; worst half-float error {worst:.2e} m",
+        f32s.len()
+    );
+    assert!(std::fs::metadata(&half).unwrap().len() < std::fs::metadata(&full).unwrap().len());
+    let sidecar = |p: &std::path::Path| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(p.with_extension("json")).unwrap()).unwrap()
+    };
+    assert_eq!(sidecar(&half)["sdf"]["format"], "R16_SFLOAT");
+    assert_eq!(sidecar(&full)["sdf"]["format"], "R32_SFLOAT");
+
+    let out = dir.join("bake");
+    common::run_ok::<_, std::ffi::OsString>([
+        "bake".into(),
+        "-q".into(),
+        "--force".into(),
+        "--texels-per-meter".into(),
+        "4".into(),
+        "--probes".into(),
+        "off".into(),
+        "--sdf".into(),
+        "40".into(),
+        "--sdf-format".into(),
+        "r16f".into(),
+        std::ffi::OsString::from(&path),
+        std::ffi::OsString::from("--out"),
+        std::ffi::OsString::from(&out),
+    ]);
+    let (hb, rawb) = common::ktx2_level(&out.join("sdf.ktx2"));
+    assert_eq!(hb.format, Some(ktx2::Format::R16_SFLOAT));
+    assert_eq!(halves(&rawb).len(), f16s.len());
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["sdf"]["format"], "R16_SFLOAT");
+
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(["sdf", "-q", "--format", "r8", "--out"])
+        .arg(dir.join("bad.ktx2"))
+        .arg(&path)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("r16f") && stderr.contains("r32f"),
+        "{stderr}"
+    );
+}
+
+/// A closed box (|x|, |y|, |z| ≤ 1), a floor under it and a one-sided wall
+/// at x = 1.6 facing it, with one probe volume over [−0.3, 1.3] ×
+/// [−0.6, 0.4] × [−1.3, 0.7] (through the box's +x side, short of the
+/// wall), written as a glTF scene `name`.
+fn volume_scene(name: &str) -> std::path::PathBuf {
+    let mut b = GltfBuilder::default();
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = cube(1.0, false);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("box", m);
+    let (p, i) = quad([-3.0, -1.5, -3.0], [0.0, 0.0, 6.0], [6.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let (p, i) = quad([1.6, -1.5, -3.0], [0.0, 0.0, 6.0], [0.0, 2.5, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("wall", m);
+    let mut doc = b.json();
+    doc["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({
+            "name": "volume", "translation": [0.5, -0.1, -0.3], "scale": [1.6, 1.0, 2.0],
+            "extras": {"radbake": {"probe_volume": {"spacing": 0.5}}}
+        }));
+    let n = doc["nodes"].as_array().unwrap().len();
+    doc["scenes"][0]["nodes"] = serde_json::json!((0..n).collect::<Vec<_>>());
+    let path = temp_dir(name).join("volume.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+/// A field over the probe volume (`--bounds probe-volumes`): its grid is
+/// the volume's box with [`sdf::Grid::over`]'s voxel of margin, and its
+/// values are the whole scene's field's at the same points (the two grids
+/// line up here: the box's corner is whole voxels from the scene's), to
+/// 10⁻⁴ m, voxel by voxel and trilinear at random points; distances
+/// measure to triangles outside the box (the wall). `radbake sdf
+/// --bounds probe-volumes` writes that field; without a probe volume,
+/// `--bounds probe-volumes` and `bake --sdf-bounds probe-volumes` are
+/// errors naming the option.
+#[test]
+fn field_over_the_probe_volumes() {
+    use radbake::config::SdfBounds;
+    let path = volume_scene("sdf-volume");
+    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let g = radbake::geometry::Geometry::unmapped(&scene);
+    let rays = radbake::raycast::RayCaster::new(&scene, &g);
+    let voxel = 0.1;
+    let settings = Settings { voxel, band: None };
+    let whole = sdf::bake(&scene, &g, &rays, settings);
+    let (lo, hi) = sdf::bounds(&scene, &g, SdfBounds::ProbeVolumes).unwrap();
+    assert!(
+        (lo - Vec3::new(-0.3, -0.6, -1.3)).abs().max_element() < 1e-5,
+        "{lo}"
+    );
+    assert!(
+        (hi - Vec3::new(1.3, 0.4, 0.7)).abs().max_element() < 1e-5,
+        "{hi}"
+    );
+    let part = sdf::bake_over(&scene, &g, &rays, (lo, hi), settings);
+    let gr = part.grid;
+    let top = gr.origin + Vec3::from(gr.dims.map(|d| d as f32)) * voxel;
+    assert!((gr.origin - (lo - Vec3::splat(voxel))).abs().max_element() < 1e-5);
+    assert!(top.cmpge(hi + Vec3::splat(voxel - 1e-5)).all(), "{top}");
+    assert!(top.cmplt(hi + Vec3::splat(2.0 * voxel)).all(), "{top}");
+    assert!(part.grid.len() * 10 < whole.grid.len());
+
+    // Voxel by voxel: the scene's grid's voxel at the same centre.
+    let shift = (gr.origin - whole.grid.origin) / voxel;
+    assert!(
+        (shift - shift.round()).abs().max_element() < 1e-3,
+        "{shift}"
+    );
+    let [sx, sy, sz] = shift.round().to_array().map(|v| v as usize);
+    let [wx, wy, _] = whole.grid.dims.map(|d| d as usize);
+    let (mut worst, mut inside, mut to_wall) = (0.0f32, 0, 0);
+    for i in 0..gr.len() {
+        let [x, y, z] = gr.xyz(i).map(|v| v as usize);
+        let j = (x + sx) + wx * ((y + sy) + wy * (z + sz));
+        assert!((gr.centre(i) - whole.grid.centre(j)).length() < 1e-4);
+        let (a, b) = (part.distance[i], whole.distance[j]);
+        worst = worst.max((a - b).abs());
+        inside += (a < 0.0) as u32;
+        // Nearer the wall (outside the box) than the box or the floor.
+        let c = gr.centre(i);
+        to_wall += ((a - (1.6 - c.x)).abs() < 1e-4 && 1.6 - c.x < c.x - 1.0) as u32;
+    }
+    // At random points, trilinear.
+    let mut rng = radbake::sampling::Stream::new(3, 5, 0);
+    for _ in 0..1000 {
+        let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let p = lo + (hi - lo) * u;
+        worst = worst.max((part.sample(p) - whole.sample(p)).abs());
+    }
+    eprintln!(
+        "{:?} voxels over the volume ({} over the scene); worst difference {worst:.2e} m; {inside} inside the box, {to_wall} nearest the wall",
+        gr.dims,
+        whole.grid.len()
+    );
+    assert!(worst < 1e-4, "worst difference {worst}");
+    assert!(inside > 100 && to_wall > 100);
+
+    // `radbake sdf --bounds probe-volumes`.
+    let out = temp_dir("sdf-volume-out").join("field.ktx2");
+    common::run_ok::<_, std::ffi::OsString>([
+        "sdf".into(),
+        "-q".into(),
+        "--bounds".into(),
+        "probe-volumes".into(),
+        "--voxel-size".into(),
+        "0.1".into(),
+        "--out".into(),
+        std::ffi::OsString::from(&out),
+        std::ffi::OsString::from(&path),
+    ]);
+    let (h, raw) = common::ktx2_level(&out);
+    assert_eq!([h.pixel_width, h.pixel_height, h.pixel_depth], gr.dims);
+    assert_eq!(floats(&raw), part.distance);
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.with_extension("json")).unwrap()).unwrap();
+    assert_eq!(
+        json["sdf"]["origin"],
+        serde_json::json!(gr.origin.to_array())
+    );
+
+    // No probe volume: errors naming the option.
+    let (p, i) = sphere(1.0, 8, 16, false);
+    let bare = mesh_scene("sdf-volume-none", &p, &i);
+    let run = |args: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
+            .args(args)
+            .arg(&bare)
+            .output()
+            .unwrap();
+        assert!(!o.status.success());
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let none = out.with_file_name("none.ktx2");
+    let e = run(&[
+        "sdf",
+        "-q",
+        "--bounds",
+        "probe-volumes",
+        "--out",
+        none.to_str().unwrap(),
+    ]);
+    assert!(
+        e.trim().lines().count() == 1 && e.contains("--bounds"),
+        "{e}"
+    );
+    assert!(e.contains("no probe volume"), "{e}");
+    let bake_out = out.with_file_name("bake");
+    let e = run(&[
+        "bake",
+        "-q",
+        "--force",
+        "--sdf",
+        "8",
+        "--sdf-bounds",
+        "probe-volumes",
+        "--out",
+        bake_out.to_str().unwrap(),
+    ]);
+    assert!(
+        e.contains("sdf_bounds") && e.contains("no probe volume"),
+        "{e}"
+    );
+}
+
 /// `radbake bake --sdf 24` writes `sdf.ktx2` and the manifest's `sdf`
 /// entry: the same field as `radbake sdf --resolution 24` (within float
 /// rounding: the bake's triangles come through its atlas).
@@ -376,7 +633,7 @@ fn bake_option_writes_the_field() {
 /// BVH's primary hit: the means within 1 % and ≥ 95 % of pixels within
 /// 2 % (the rest lie on silhouettes and edges); the rendered image
 /// (16 jittered rays per pixel) against the path-traced final pass: means
-/// within 5 % (+3.1 %: the lamp's edge).
+/// within 5 % (+2.3 %: the lamp's edge).
 #[test]
 fn sphere_traced_render_matches_the_bvh() {
     use radbake::trace::render::{render, Integrator, View};
@@ -457,6 +714,13 @@ fn sphere_traced_render_matches_the_bvh() {
     // emission (the nearest triangle short of the hit), a bright halo of
     // a voxel; so a looser bound for the whole image.
     assert!(rel(marched.mean(), fin.mean()) < 0.05);
+}
+
+/// Little-endian half floats, widened.
+fn halves(raw: &[u8]) -> Vec<f32> {
+    raw.chunks_exact(2)
+        .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32())
+        .collect()
 }
 
 /// Little-endian f32s.

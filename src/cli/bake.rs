@@ -126,6 +126,12 @@ pub struct BakeArgs {
     /// Also bake the signed distance field (sdf.ktx2) with this many voxels along the longest side [default: 0, none].
     #[arg(long, value_name = "VOXELS")]
     pub sdf: Option<u32>,
+    /// The distance field's texel format: r32f or r16f (half floats) [default: r32f].
+    #[arg(long, value_enum)]
+    pub sdf_format: Option<radbake::config::SdfFormat>,
+    /// What the distance field covers: the scene, or the union of its probe volumes' boxes [default: scene].
+    #[arg(long, value_enum)]
+    pub sdf_bounds: Option<radbake::config::SdfBounds>,
     /// Adaptive gather: a texel stops at 32, 64, … rays once its estimated relative
     /// standard error is at most this; 0 casts every ray [default: 0.005].
     #[arg(long)]
@@ -270,6 +276,8 @@ impl BakeArgs {
             probe_budget,
             probe_rays,
             sdf,
+            sdf_format,
+            sdf_bounds,
             stitch_seams,
             burial_planes,
             backface_tolerance,

@@ -1,6 +1,6 @@
 //! `radbake sdf`: the level's signed distance field ([`radbake::sdf`]) as
-//! a KTX2 3D texture (`R32_SFLOAT`, metres) and a JSON sidecar with its
-//! world transform.
+//! a KTX2 3D texture (`R32_SFLOAT` or `R16_SFLOAT`, metres) and a JSON
+//! sidecar with its world transform.
 
 use super::{lib_err, Outcome};
 use clap::Args;
@@ -23,6 +23,13 @@ pub struct SdfArgs {
     /// Clamp distances at this many voxels (a narrow band; ≥ 2) [default: none].
     #[arg(long, value_name = "VOXELS")]
     pub band: Option<f32>,
+    /// What the grid covers: the scene, or the union of its probe volumes' boxes (--resolution
+    /// then counts voxels along that box's longest side) [default: scene].
+    #[arg(long, value_enum, default_value = "scene")]
+    pub bounds: radbake::config::SdfBounds,
+    /// Texel format: r32f (32-bit floats) or r16f (half floats, half the size).
+    #[arg(long, value_enum, default_value = "r32f")]
+    pub format: radbake::config::SdfFormat,
     /// Print nothing but errors.
     #[arg(long, short)]
     pub quiet: bool,
@@ -33,9 +40,18 @@ pub fn run(args: &SdfArgs) -> Outcome {
     let start = Instant::now();
     let scene = radbake::scene::load(&args.scene, &Default::default()).map_err(lib_err)?;
     let geometry = radbake::geometry::Geometry::unmapped(&scene);
-    let bounds = geometry
-        .bounds()
-        .ok_or_else(|| (1, format!("{}: no triangles", args.scene.display())))?;
+    if geometry.is_empty() {
+        return Err((1, format!("{}: no triangles", args.scene.display())));
+    }
+    let bounds = radbake::sdf::bounds(&scene, &geometry, args.bounds).ok_or_else(|| {
+        (
+            1,
+            format!(
+                "--bounds probe-volumes: {} has no probe volume (a node with extras.radbake.probe_volume)",
+                args.scene.display()
+            ),
+        )
+    })?;
     let voxel = match (args.voxel_size, args.resolution) {
         (Some(v), _) if v.is_finite() && v > 0.0 => v,
         (Some(v), _) => {
@@ -70,9 +86,10 @@ pub fn run(args: &SdfArgs) -> Outcome {
         band: args.band,
     };
     let baked = Instant::now();
-    let sdf = radbake::sdf::bake(&scene, &geometry, &rays, settings);
+    let sdf = radbake::sdf::bake_over(&scene, &geometry, &rays, bounds, settings);
     let seconds = baked.elapsed().as_secs_f64();
-    let files = radbake::output::sdf::write(&args.out, &sdf, args.band).map_err(lib_err)?;
+    let files =
+        radbake::output::sdf::write(&args.out, &sdf, args.band, args.format).map_err(lib_err)?;
     if !args.quiet {
         let [x, y, z] = sdf.grid.dims;
         let n = sdf.grid.len() as f64;

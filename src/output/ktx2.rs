@@ -16,6 +16,8 @@ const VK_FORMAT_R16G16B16A16_SFLOAT: u32 = 97;
 const VK_FORMAT_BC6H_UFLOAT_BLOCK: u32 = 143;
 /// `VK_FORMAT_R32_SFLOAT`.
 const VK_FORMAT_R32_SFLOAT: u32 = 100;
+/// `VK_FORMAT_R16_SFLOAT`.
+const VK_FORMAT_R16_SFLOAT: u32 = 76;
 /// `VK_FORMAT_R8G8B8A8_UNORM`.
 const VK_FORMAT_R8G8B8A8_UNORM: u32 = 37;
 
@@ -163,6 +165,20 @@ pub fn ktx2_r32f_zstd(size: [u32; 3], texels: &[f32], level: i32) -> Vec<u8> {
     let mut dfd = vec![1 | 1 << 8 | 1 << 16, 0, 4, 0];
     dfd.extend([31 << 16 | 0xC0 << 24, 0, 0xBF80_0000, 0x3F80_0000]);
     file(VK_FORMAT_R32_SFLOAT, 4, size, &dfd, &raw, Some(level))
+}
+
+/// [`ktx2_r32f_zstd`] in `R16_SFLOAT`: half floats (IEEE 754 binary16,
+/// rounded to nearest; 11 significant bits, so within 2⁻¹¹ of each value,
+/// clamped to ±65504; NaN becomes 0), half the size. The data format
+/// descriptor is the same but for its one 16-bit sample and 2 bytes per
+/// plane.
+pub fn ktx2_r16f_zstd(size: [u32; 3], texels: &[f32], level: i32) -> Vec<u8> {
+    let n: usize = size.iter().map(|&d| d.max(1) as usize).product();
+    assert_eq!(texels.len(), n);
+    let raw: Vec<u8> = texels.iter().flat_map(|&v| half_le(v, -65504.0)).collect();
+    let mut dfd = vec![1 | 1 << 8 | 1 << 16, 0, 2, 0];
+    dfd.extend([15 << 16 | 0xC0 << 24, 0, 0xBF80_0000, 0x3F80_0000]);
+    file(VK_FORMAT_R16_SFLOAT, 2, size, &dfd, &raw, Some(level))
 }
 
 /// A 2D KTX2 file of `width` × `height` linear RGBA8 texels (row by row)
@@ -321,6 +337,29 @@ mod tests {
         }
         assert_eq!(decode(rgb9e5(Vec3::splat(-1.0))), Vec3::ZERO);
         assert_eq!(decode(rgb9e5(Vec3::splat(2.0))), Vec3::splat(2.0));
+    }
+
+    #[test]
+    fn r16f_holds_half_floats() {
+        let texels = [0.0, -1.5, 7.123_456, 1e-3, -70000.0, f32::NAN];
+        let bytes = ktx2_r16f_zstd([3, 2, 1], &texels, 3);
+        let word = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap());
+        assert_eq!((word(12), word(16)), (76, 2)); // R16_SFLOAT, 2-byte type
+        assert_eq!((word(20), word(24), word(28)), (3, 2, 1));
+        assert_eq!(word(44), 2); // Zstandard
+                                 // The DFD: 2 bytes per plane, one 16-bit FLOAT | SIGNED sample.
+        assert_eq!((word(104 + 20), word(104 + 28)), (2, 15 << 16 | 0xC0 << 24));
+        let at = u64::from_le_bytes(bytes[80..88].try_into().unwrap()) as usize;
+        let len = u64::from_le_bytes(bytes[88..96].try_into().unwrap()) as usize;
+        let raw = zstd::bulk::decompress(&bytes[at..at + len], 12).unwrap();
+        let back: Vec<f32> = raw
+            .chunks_exact(2)
+            .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32())
+            .collect();
+        for (v, b) in texels[..4].iter().zip(&back) {
+            assert!((v - b).abs() <= v.abs() / 2048.0, "{v} -> {b}");
+        }
+        assert_eq!(back[4..], [-65504.0, 0.0]);
     }
 
     #[test]

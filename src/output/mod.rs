@@ -429,9 +429,9 @@ pub fn write_engine_outputs(
     let sdf_entry = match &bake.sdf {
         Some(field) => {
             let path = out_dir.join("sdf.ktx2");
-            sdf::write_ktx2(&path, field)?;
+            sdf::write_ktx2(&path, field, bake.config.sdf_format)?;
             written.push(path);
-            sdf::manifest_entry(field, None, Some("sdf.ktx2".into()))
+            sdf::manifest_entry(field, None, Some("sdf.ktx2".into()), bake.config.sdf_format)
         }
         None => serde_json::Value::Null,
     };

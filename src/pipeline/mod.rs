@@ -95,6 +95,15 @@ pub fn bake<'s>(
             ),
         });
     }
+    if config.sdf > 0
+        && config.sdf_bounds == crate::config::SdfBounds::ProbeVolumes
+        && scene.probe_volumes.is_empty()
+    {
+        return Err(crate::Error::Config {
+            key: "sdf_bounds".into(),
+            message: "probe-volumes: the scene has no probe volume (a node with extras.radbake.probe_volume); use \"scene\"".into(),
+        });
+    }
     // The sky map is read (and refused) before any work is done.
     let sky = config.load_sky()?;
     let mut log = Log::new(progress, input_warnings(scene));
@@ -160,14 +169,13 @@ pub fn bake<'s>(
 
     let sdf = (config.sdf > 0).then(|| {
         log.begin("sdf", 0);
-        let bounds = geometry
-            .bounds()
+        let bounds = crate::sdf::bounds(scene, &geometry, config.sdf_bounds)
             .unwrap_or((glam::Vec3::ZERO, glam::Vec3::ONE));
         let settings = crate::sdf::Settings {
             voxel: crate::sdf::voxel_for_resolution(bounds, config.sdf),
             band: None,
         };
-        let field = crate::sdf::bake(scene, &geometry, &rays, settings);
+        let field = crate::sdf::bake_over(scene, &geometry, &rays, bounds, settings);
         log.end("sdf");
         field
     });

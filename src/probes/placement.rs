@@ -22,6 +22,25 @@ pub struct VolumeSpec {
     pub spacing: Option<f32>,
 }
 
+impl VolumeSpec {
+    /// The box's world bounds (min, max): the axis-aligned box around its
+    /// eight corners (the box itself where the node is not rotated).
+    pub fn world_bounds(&self) -> (Vec3, Vec3) {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for k in 0..8 {
+            let corner = Vec3::new(
+                (k & 1) as f32 - 0.5,
+                ((k >> 1) & 1) as f32 - 0.5,
+                ((k >> 2) & 1) as f32 - 0.5,
+            );
+            let p = self.world_from_box.transform_point3(corner);
+            (lo, hi) = (lo.min(p), hi.max(p));
+        }
+        (lo, hi)
+    }
+}
+
 /// One probe grid.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Volume {
@@ -156,6 +175,34 @@ pub fn place(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn world_bounds_hold_the_box() {
+        let spec = |m: Mat4| VolumeSpec {
+            name: "v".into(),
+            world_from_box: m,
+            spacing: None,
+        };
+        let m = Mat4::from_translation(Vec3::new(1.0, 2.0, 3.0))
+            * Mat4::from_scale(Vec3::new(2.0, 4.0, 6.0));
+        let (lo, hi) = spec(m).world_bounds();
+        assert!(
+            (lo - Vec3::new(0.0, 0.0, 0.0)).abs().max_element() < 1e-6,
+            "{lo}"
+        );
+        assert!(
+            (hi - Vec3::new(2.0, 4.0, 6.0)).abs().max_element() < 1e-6,
+            "{hi}"
+        );
+        // A unit cube turned 45° about Y spans √2 in x and z.
+        let (lo, hi) = spec(Mat4::from_rotation_y(std::f32::consts::FRAC_PI_4)).world_bounds();
+        let r = std::f32::consts::SQRT_2 / 2.0;
+        assert!(
+            (hi - Vec3::new(r, 0.5, r)).abs().max_element() < 1e-6,
+            "{hi}"
+        );
+        assert!((lo + hi).abs().max_element() < 1e-6);
+    }
 
     #[test]
     fn probes_sit_at_cell_centres_inside_the_bounds() {
