@@ -192,10 +192,17 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("radbake-field-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("f.ktx2");
-        crate::output::sdf::write(&path, &sdf, None).unwrap();
+        // Both formats; the quarter-metre steps are exact in half floats.
+        for format in [
+            crate::config::SdfFormat::R16f,
+            crate::config::SdfFormat::R32f,
+        ] {
+            crate::output::sdf::write(&path, &sdf, None, format).unwrap();
+            let f = open(&path).unwrap();
+            assert_eq!(f.dims, [3, 2, 4]);
+            assert_eq!(f.values, sdf.distance);
+        }
         let f = open(&path).unwrap();
-        assert_eq!(f.dims, [3, 2, 4]);
-        assert_eq!(f.values, sdf.distance);
         assert_eq!(
             f.bounds,
             (Vec3::new(-1.0, 0.0, 2.0), Vec3::new(0.5, 1.0, 4.0))
