@@ -529,17 +529,26 @@ fn baked_probe_scene() -> &'static Path {
     })
 }
 
+/// `--look-from` and `--look-at` for `from` and `at` (with `=`: the
+/// coordinates may start with a minus sign).
+fn look_args(from: Vec3, at: Vec3) -> [String; 2] {
+    let v = |p: Vec3| format!("{},{},{}", p.x, p.y, p.z);
+    [
+        format!("--look-from={}", v(from)),
+        format!("--look-at={}", v(at)),
+    ]
+}
+
 /// Renders `glb` from `from` towards `at` at 160×120, no tone map, EV 0;
 /// None without an adapter.
 fn render_at(glb: &Path, png: &Path, view: &str, from: Vec3, at: Vec3) -> Option<image::RgbaImage> {
-    let v = |p: Vec3| format!("{},{},{}", p.x, p.y, p.z);
     let args = ["--size", "160x120", "--tone-map", "none", "--view", view];
-    // `=`: the coordinates may start with a minus sign.
-    let (from, at) = (
-        format!("--look-from={}", v(from)),
-        format!("--look-at={}", v(at)),
-    );
-    let extra: Vec<&str> = args.iter().copied().chain([&*from, &*at]).collect();
+    let look = look_args(from, at);
+    let extra: Vec<&str> = args
+        .iter()
+        .copied()
+        .chain(look.iter().map(String::as_str))
+        .collect();
     headless(glb, png, &extra)?;
     Some(load_rgba(png))
 }
@@ -1469,10 +1478,7 @@ fn sphere_traced_sun_shadow_matches_the_ray_cast_one() {
     let glb = out.join("scene.baked.glb");
     let dir = temp_dir("preview-sdf-shadow");
     let (w, h) = (320u32, 240u32);
-    let look = [
-        format!("--look-from={},{},{}", SDF_EYE.x, SDF_EYE.y, SDF_EYE.z),
-        format!("--look-at={},{},{}", SDF_AT.x, SDF_AT.y, SDF_AT.z),
-    ];
+    let look = look_args(SDF_EYE, SDF_AT);
     let render = |name: &str, extra: &[&str]| {
         let png = dir.join(name);
         let mut args = vec!["--size", "320x240", "--tone-map", "none"];
@@ -1565,29 +1571,15 @@ fn distance_field_occlusion_darkens_a_cube_beside_the_box() {
         "lightmap",
     ];
     let png = dir.join("without.png");
-    let look = [
-        format!("--look-from={},{},{}", eye.x, eye.y, eye.z),
-        format!("--look-at={},{},{}", at.x, at.y, at.z),
-    ];
+    let look = look_args(eye, at);
     let mut extra: Vec<&str> = args.to_vec();
     extra.extend(look.iter().map(String::as_str));
     extra.extend(["--dfao-reach", "0"]);
     headless(&glb, &png, &extra).unwrap();
     let without = load_rgba(&png);
     // The top faces' centres, projected.
-    let model = model::Model::load(&glb).unwrap();
-    let viewpoint = radbake::preview::Viewpoint::LookAt {
-        from: eye,
-        at: Some(at),
-    };
-    let camera = radbake::preview::initial_camera(&model, &viewpoint).unwrap();
-    let clip_from_world = camera.view_proj(160.0 / 120.0);
     let ratio = |centre: Vec3| {
-        let ndc = clip_from_world.project_point3(centre);
-        let (x, y) = (
-            ((ndc.x + 1.0) * 0.5 * 160.0) as u32,
-            ((1.0 - ndc.y) * 0.5 * 120.0) as u32,
-        );
+        let (x, y) = pixel_of(centre, eye, at, (160, 120));
         let lin = |img: &image::RgbaImage| srgb_to_linear(img.get_pixel(x, y)[1]);
         lin(&with) / lin(&without)
     };
@@ -1611,10 +1603,7 @@ fn sdf_view_shows_the_surface_and_the_slice() {
     let dir = temp_dir("preview-sdf-view");
     let eye = Vec3::new(0.0, 4.0, 0.01);
     let at = Vec3::ZERO;
-    let look = [
-        format!("--look-from={},{},{}", eye.x, eye.y, eye.z),
-        format!("--look-at={},{},{}", at.x, at.y, at.z),
-    ];
+    let look = look_args(eye, at);
     let render = |name: &str, extra: &[&str]| {
         let png = dir.join(name);
         let mut args = vec!["--size", "160x120", "--view", "sdf"];
@@ -1632,19 +1621,7 @@ fn sdf_view_shows_the_surface_and_the_slice() {
     let inside = slice.get_pixel(80, 60);
     assert!(inside[2] > inside[0], "inside the box: {inside:?}");
     // 1.5 m along +x from the centre: open ground, 1 m from the box.
-    let model = model::Model::load(&glb).unwrap();
-    let viewpoint = radbake::preview::Viewpoint::LookAt {
-        from: eye,
-        at: Some(at),
-    };
-    let camera = radbake::preview::initial_camera(&model, &viewpoint).unwrap();
-    let ndc = camera
-        .view_proj(160.0 / 120.0)
-        .project_point3(Vec3::new(1.5, 0.5, 0.0));
-    let (x, y) = (
-        ((ndc.x + 1.0) * 0.5 * 160.0) as u32,
-        ((1.0 - ndc.y) * 0.5 * 120.0) as u32,
-    );
+    let (x, y) = pixel_of(Vec3::new(1.5, 0.5, 0.0), eye, at, (160, 120));
     let outside = slice.get_pixel(x, y);
     assert!(outside[0] > outside[2], "outside: {outside:?}");
     // A bake without a field.

@@ -281,17 +281,7 @@ fn denoising_reduces_error() {
 /// every instance's texel mean stays within 0.5 % of the reference's.
 #[test]
 fn denoising_covers_the_sky_light() {
-    let mut b = GltfBuilder::default();
-    let grey = b.material([0.5; 3], [0.0; 3]);
-    let (p, i) = quad([-1.0, 0.0, -1.0], [0.0, 0.0, 2.0], [2.0, 0.0, 0.0]);
-    let m = b.mesh(&p, &i, Some(grey));
-    b.node("floor", m);
-    let (p, i) = quad([-0.3, 0.4, -0.3], [0.6, 0.0, 0.0], [0.0, 0.0, 0.6]);
-    let m = b.mesh(&p, &i, Some(grey));
-    b.node("plate", m);
-    let path = temp_dir("denoise-sky").join("sky.gltf");
-    b.write(&path);
-    let scene = radbake::scene::load(&path, &Default::default()).unwrap();
+    let scene = plate_over_floor("denoise-sky");
     let base = BakeConfig {
         sky: [0.4, 0.5, 0.7],
         texels_per_meter: 32.0,
@@ -557,6 +547,22 @@ fn close_emitter_lights_its_neighbour() {
     }
 }
 
+/// A 2 m floor and a 0.6 m plate 0.4 m over its centre (albedo 0.5),
+/// written to a fresh folder `name` and loaded.
+fn plate_over_floor(name: &str) -> radbake::scene::Scene {
+    let mut b = GltfBuilder::default();
+    let grey = b.material([0.5; 3], [0.0; 3]);
+    let (p, i) = quad([-1.0, 0.0, -1.0], [0.0, 0.0, 2.0], [2.0, 0.0, 0.0]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("floor", m);
+    let (p, i) = quad([-0.3, 0.4, -0.3], [0.6, 0.0, 0.0], [0.0, 0.0, 0.6]);
+    let m = b.mesh(&p, &i, Some(grey));
+    b.node("plate", m);
+    let path = temp_dir(name).join("sky.gltf");
+    b.write(&path);
+    radbake::scene::load(&path, &Default::default()).unwrap()
+}
+
 /// Per instance, the texel mean of the direct light (valid texels only).
 fn direct_means(bake: &radbake::Bake) -> Vec<f64> {
     texel_means(bake, &bake.transport.direct)
@@ -590,18 +596,7 @@ fn texel_means(bake: &radbake::Bake, values: &[glam::Vec3]) -> Vec<f64> {
 /// strata in reverse order, which is biased: the plate read 4.7 % low.)
 #[test]
 fn gather_rays_give_the_same_direct_light() {
-    let mut b = GltfBuilder::default();
-    let grey = b.material([0.5; 3], [0.0; 3]);
-    let (p, i) = quad([-1.0, 0.0, -1.0], [0.0, 0.0, 2.0], [2.0, 0.0, 0.0]);
-    let m = b.mesh(&p, &i, Some(grey));
-    b.node("floor", m);
-    let (p, i) = quad([-0.3, 0.4, -0.3], [0.6, 0.0, 0.0], [0.0, 0.0, 0.6]);
-    let m = b.mesh(&p, &i, Some(grey));
-    b.node("plate", m);
-    let dir = temp_dir("shared-direct");
-    let path = dir.join("sky.gltf");
-    b.write(&path);
-    let sky = radbake::scene::load(&path, &Default::default()).unwrap();
+    let sky = plate_over_floor("shared-direct");
     let cornell =
         radbake::scene::load(&scene_path("cornell_box.gltf"), &Default::default()).unwrap();
     for (scene, sky_radiance) in [(&cornell, [0.0; 3]), (&sky, [0.4, 0.5, 0.7])] {

@@ -17,6 +17,19 @@ fn bake(path: &std::path::Path, voxel: f32) -> Sdf {
     sdf::bake(&scene, &g, &rays, Settings { voxel, band: None })
 }
 
+/// `radbake bake <path> --out <out>` at 4 texels/m without probes, with
+/// the field options `sdf`.
+fn bake_with_field(path: &std::path::Path, out: &std::path::Path, sdf: &[&str]) {
+    let mut args: Vec<std::ffi::OsString> = ["bake", "-q", "--force", "--texels-per-meter", "4"]
+        .iter()
+        .chain(&["--probes", "off"])
+        .chain(sdf)
+        .map(Into::into)
+        .collect();
+    args.extend([path.into(), "--out".into(), out.into()]);
+    common::run_ok(args);
+}
+
 /// One mesh of `p`, `i` written as a glTF scene `name`.
 fn mesh_scene(name: &str, p: &[[f32; 3]], i: &[u32]) -> std::path::PathBuf {
     let mut b = GltfBuilder::default();
@@ -371,22 +384,7 @@ fn r16f_is_the_field_in_half_floats() {
     assert_eq!(sidecar(&full)["sdf"]["format"], "R32_SFLOAT");
 
     let out = dir.join("bake");
-    common::run_ok::<_, std::ffi::OsString>([
-        "bake".into(),
-        "-q".into(),
-        "--force".into(),
-        "--texels-per-meter".into(),
-        "4".into(),
-        "--probes".into(),
-        "off".into(),
-        "--sdf".into(),
-        "40".into(),
-        "--sdf-format".into(),
-        "r16f".into(),
-        std::ffi::OsString::from(&path),
-        std::ffi::OsString::from("--out"),
-        std::ffi::OsString::from(&out),
-    ]);
+    bake_with_field(&path, &out, &["--sdf", "40", "--sdf-format", "r16f"]);
     let (hb, rawb) = common::ktx2_level(&out.join("sdf.ktx2"));
     assert_eq!(hb.format, Some(ktx2::Format::R16_SFLOAT));
     assert_eq!(halves(&rawb).len(), f16s.len());
@@ -585,20 +583,7 @@ fn bake_option_writes_the_field() {
     let (p, i) = sphere(1.0, 16, 32, false);
     let path = mesh_scene("sdf-bake", &p, &i);
     let out = temp_dir("sdf-bake-out");
-    common::run_ok::<_, std::ffi::OsString>([
-        "bake".into(),
-        "-q".into(),
-        "--force".into(),
-        "--texels-per-meter".into(),
-        "4".into(),
-        "--probes".into(),
-        "off".into(),
-        "--sdf".into(),
-        "24".into(),
-        std::ffi::OsString::from(&path),
-        std::ffi::OsString::from("--out"),
-        std::ffi::OsString::from(&out),
-    ]);
+    bake_with_field(&path, &out, &["--sdf", "24"]);
     let alone = out.join("alone.ktx2");
     common::run_ok::<_, std::ffi::OsString>([
         "sdf".into(),
