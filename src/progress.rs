@@ -9,6 +9,10 @@ pub trait Progress: Sync {
     fn advance(&self, _n: u64) {}
     /// The current stage ended.
     fn end(&self) {}
+    /// A named figure of the current stage, its latest value (the
+    /// progressive solve's `unshot`: the unshot power left, a fraction of
+    /// the initial).
+    fn figure(&self, _name: &str, _value: f64) {}
 }
 
 /// Reports nothing.

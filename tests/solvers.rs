@@ -136,8 +136,15 @@ fn solvers_agree_on_the_same_matrix() {
     let reference = solve::dense::solve(&f.matrix, &sys).unwrap();
     let jacobi = solve::jacobi::solve(&f.matrix, &sys, 1e-7, 1000, &|_| {});
     let gs = solve::gauss_seidel::solve(&f.matrix, &sys, 1e-7, 1000, &|_| {});
-    let prog =
-        solve::progressive::solve(&StoredColumns::new(f), &sys, 1e-7, 10_000_000, &|_| {}).solution;
+    let prog = solve::progressive::solve(
+        &StoredColumns::new(f),
+        &sys,
+        1e-7,
+        10_000_000,
+        &|_| {},
+        &|_| {},
+    )
+    .solution;
     let total: f64 = reference
         .irradiance
         .iter()
@@ -422,4 +429,37 @@ fn closed_room_absorbs_what_the_lamp_emits() {
         );
         let _ = analytic::parallel_rectangles(1.0, 1.0, 1.0);
     }
+}
+
+/// `bake --solver progressive --progress json` reports the unshot power
+/// left as the solve goes (the `"unshot"` figure of the `solve` stage's
+/// lines, a fraction of the initial): never rising, and at the end below
+/// the tolerance.
+#[test]
+fn progressive_reports_its_unshot_power() {
+    let out = temp_dir("progress-unshot");
+    let run = common::run_ok([
+        "bake".as_ref(),
+        scene_path("cornell_box.gltf").as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+        "--solver".as_ref(),
+        "progressive".as_ref(),
+        "--progress".as_ref(),
+        "json".as_ref(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    let unshot: Vec<f64> = stderr
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v["stage"] == "solve")
+        .filter_map(|v| v["unshot"].as_f64())
+        .collect();
+    eprintln!("unshot: {unshot:?}");
+    let last = *unshot.last().expect("the solve's lines carry `unshot`");
+    assert!(last < BakeConfig::default().tolerance as f64, "{last}");
+    assert!(
+        unshot.windows(2).all(|w| w[1] <= w[0] + 1e-12),
+        "{unshot:?}"
+    );
 }

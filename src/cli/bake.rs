@@ -337,6 +337,7 @@ pub fn run(args: &BakeArgs) -> Outcome {
     let progress: Box<dyn radbake::Progress> = match args.progress {
         ProgressMode::Json => Box::new(JsonProgress {
             state: Mutex::new((String::new(), 0, 0, Instant::now(), Instant::now())),
+            figures: Mutex::new(Default::default()),
         }),
         ProgressMode::Bars => Box::new(Bars {
             bar: Mutex::new(None),

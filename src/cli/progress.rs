@@ -48,23 +48,28 @@ impl radbake::Progress for Bars {
 }
 
 /// One JSON object per line on stderr: {"stage","done","total","elapsed","eta"}
-/// at most every 100 ms, and at each stage's start and end.
+/// and the stage's latest figures (`radbake::Progress::figure`, e.g. the
+/// progressive solve's `"unshot"`), at most every 100 ms, and at each
+/// stage's start and end.
 pub struct JsonProgress {
     pub state: Mutex<(String, u64, u64, Instant, Instant)>,
+    /// The current stage's figures.
+    pub figures: Mutex<serde_json::Map<String, serde_json::Value>>,
 }
 
 impl JsonProgress {
-    fn emit(stage: &str, done: u64, total: u64, started: Instant) {
+    fn emit(&self, stage: &str, done: u64, total: u64, started: Instant) {
         let elapsed = started.elapsed().as_secs_f64();
         let eta = if done > 0 && total >= done {
             serde_json::json!(elapsed * (total - done) as f64 / done as f64)
         } else {
             serde_json::Value::Null
         };
-        eprintln!(
-            "{}",
-            serde_json::json!({"stage": stage, "done": done, "total": total, "elapsed": elapsed, "eta": eta})
-        );
+        let mut line = serde_json::json!({"stage": stage, "done": done, "total": total, "elapsed": elapsed, "eta": eta});
+        for (k, v) in self.figures.lock().expect("progress lock").iter() {
+            line[k] = v.clone();
+        }
+        eprintln!("{line}");
     }
 }
 
@@ -72,18 +77,23 @@ impl radbake::Progress for JsonProgress {
     fn begin(&self, stage: &str, total: u64) {
         let now = Instant::now();
         *self.state.lock().expect("progress lock") = (stage.to_owned(), 0, total, now, now);
-        Self::emit(stage, 0, total, now);
+        self.figures.lock().expect("progress lock").clear();
+        self.emit(stage, 0, total, now);
     }
     fn advance(&self, n: u64) {
         let mut s = self.state.lock().expect("progress lock");
         s.1 += n;
         if s.4.elapsed().as_millis() >= 100 {
             s.4 = Instant::now();
-            Self::emit(&s.0, s.1, s.2, s.3);
+            self.emit(&s.0, s.1, s.2, s.3);
         }
+    }
+    fn figure(&self, name: &str, value: f64) {
+        let mut f = self.figures.lock().expect("progress lock");
+        f.insert(name.to_owned(), serde_json::json!(value));
     }
     fn end(&self) {
         let s = self.state.lock().expect("progress lock");
-        Self::emit(&s.0, s.1.max(s.2), s.2, s.3);
+        self.emit(&s.0, s.1.max(s.2), s.2, s.3);
     }
 }

@@ -59,6 +59,7 @@ pub fn run(
     check_direct_solver(config, s.patches.len())?;
     let progress = log.progress();
     let advance = |n| progress.advance(n);
+    let unshot = |u| progress.figure("unshot", u);
     // `device = "gpu"`: one batch caster for the form factors and the gather.
     let gpu = gpu_caster(s, config, &mut log.warnings);
 
@@ -91,7 +92,7 @@ pub fn run(
         form_factors,
         &direct.sampled,
         patch_direct,
-        &advance,
+        (&advance, &unshot),
     )?;
     if patch_light.solution.residual >= config.tolerance && config.solver != Solver::Direct {
         log.warnings.push(format!(
@@ -374,7 +375,7 @@ fn solve_patches(
     form_factors: Option<FormFactors>,
     sampled: &[bool],
     patch_direct: Vec<Vec3>,
-    advance: &(dyn Fn(u64) + Sync),
+    (advance, unshot): (&(dyn Fn(u64) + Sync), &(dyn Fn(f64) + Sync)),
 ) -> Result<PatchLight> {
     let emission: Vec<Vec3> = (0..s.patches.len())
         .map(|i| {
@@ -415,7 +416,7 @@ fn solve_patches(
             let rows = OnDemand::new(s, config);
             let max_shots = iterations as u64 * s.patches.len() as u64;
             let mut solution =
-                progressive::solve(&rows, &system, tolerance, max_shots, advance).solution;
+                progressive::solve(&rows, &system, tolerance, max_shots, advance, unshot).solution;
             let row_sums = progressive::gather_sweeps(&rows, &system, &mut solution, 2);
             (solution, row_sums, rows.stats())
         }

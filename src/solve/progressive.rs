@@ -84,13 +84,16 @@ const SCAN_MAX_PATCHES: usize = 1 << 15;
 const CACHE_ENTRIES: usize = 32 << 20;
 
 /// Solves by shooting until the unshot power is below `tolerance` of the
-/// initial power or `max_shots` shots have been fired.
+/// initial power or `max_shots` shots have been fired. `unshot` is told
+/// the unshot power left (a fraction of the initial) every 64 shots and at
+/// the end: the convergence of Cohen et al. (1988), fig. 5, as it happens.
 pub fn solve(
     rows: &dyn ShootingRows,
     sys: &System,
     tolerance: f32,
     max_shots: u64,
     advance: &dyn Fn(u64),
+    unshot_left: &dyn Fn(f64),
 ) -> Progressive {
     let n = sys.len();
     let mut radiance = sys.initial_radiance();
@@ -159,8 +162,14 @@ pub fn solve(
         }
         shots += 1;
         advance(1);
+        if shots % 64 == 0 {
+            unshot_left(remaining.max(0.0) / initial);
+        }
     }
     let remaining: f64 = powers.iter().sum();
+    if initial > 0.0 {
+        unshot_left(remaining / initial);
+    }
     Progressive {
         solution: Solution {
             radiance,

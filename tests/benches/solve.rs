@@ -37,12 +37,21 @@ fn solve(c: &mut Criterion) {
 
     let columns = StoredColumns::new(ff);
     let max_shots = max as u64 * bake.patches.len() as u64;
-    let shots = progressive::solve(&columns, &system, tolerance, max_shots, &|_| {})
+    let shots = progressive::solve(&columns, &system, tolerance, max_shots, &|_| {}, &|_| {})
         .solution
         .shots;
     group.throughput(Throughput::Elements(shots));
     group.bench_function(format!("progressive_{shots}_shots"), |b| {
-        b.iter(|| progressive::solve(black_box(&columns), &system, tolerance, max_shots, &|_| {}))
+        b.iter(|| {
+            progressive::solve(
+                black_box(&columns),
+                &system,
+                tolerance,
+                max_shots,
+                &|_| {},
+                &|_| {},
+            )
+        })
     });
     group.finish();
 }
