@@ -237,25 +237,6 @@ impl Surfaces<'_> {
         }
         best.map_or(Landing::Texel(texel), |(_, u)| Landing::Texel(u))
     }
-
-    /// Where the ray from `origin` along `dir` meets the plane of triangle
-    /// `tri` (known to be the visible one, e.g. from a z-buffer), clamped
-    /// onto the triangle.
-    pub fn resolve(&self, tri: u32, origin: Vec3, dir: Vec3) -> Landing {
-        let p = &self.geometry.p_ws[tri as usize];
-        let n = (p[1] - p[0]).cross(p[2] - p[0]);
-        let denom = n.dot(dir);
-        if denom == 0.0 {
-            return Landing::Unmapped;
-        }
-        let q = origin + dir * (n.dot(p[0] - origin) / denom);
-        let inv = 1.0 / n.length_squared();
-        let u = (q - p[0]).cross(p[2] - p[0]).dot(n) * inv;
-        let v = (p[1] - p[0]).cross(q - p[0]).dot(n) * inv;
-        let w = glam::Vec3::new(1.0 - u - v, u, v).max(glam::Vec3::ZERO);
-        let w = w / w.element_sum();
-        self.land(tri, w.y, w.z, dir)
-    }
 }
 
 /// One texel's sampling constants ([`Surfaces::texel_sampler`]): its main

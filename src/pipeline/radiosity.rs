@@ -462,19 +462,19 @@ fn gathered_light(
     atlas: &Atlas,
     config: &BakeConfig,
     direct: DirectLight,
-    g: Gathered,
+    mut g: Gathered,
     log: &mut Log,
 ) -> TexelLight {
-    let (sharp, mut gathered): (Vec<Vec3>, Vec<Vec3>) = if direct.gathering {
-        let gathered = g.indirect.iter().zip(&g.direct).map(|(i, h)| *i + *h);
-        (direct.parts.light.clone(), gathered.collect())
+    // `texel_direct` (reported) keeps the gather's direct part; `sharp`
+    // is the rest, which the filter leaves alone.
+    let (sharp, mut gathered, texel_direct): (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) = if direct.gathering
+    {
+        let sum = |a: &[Vec3]| a.iter().zip(&g.direct).map(|(x, h)| *x + *h).collect();
+        let (gathered, texel_direct) = (sum(&g.indirect), sum(&direct.parts.light));
+        (direct.parts.light, gathered, texel_direct)
     } else {
-        (direct.parts.baked(), g.indirect.clone())
-    };
-    let texel_direct: Vec<Vec3> = if direct.gathering {
-        sharp.iter().zip(&g.direct).map(|(l, h)| *l + *h).collect()
-    } else {
-        sharp.clone()
+        let baked = direct.parts.baked();
+        (baked.clone(), std::mem::take(&mut g.indirect), baked)
     };
     if config.denoise {
         log.begin("denoise", 0);
