@@ -66,4 +66,4 @@ pub mod trace;
 pub use config::BakeConfig;
 pub use error::{Error, Result};
 pub use pipeline::{bake, Bake};
-pub use progress::{Progress, Silent};
+pub use progress::{Progress, Silent, Snapshot};

@@ -142,7 +142,7 @@ fn solvers_agree_on_the_same_matrix() {
         1e-7,
         10_000_000,
         &|_| {},
-        &|_| {},
+        &mut |_| {},
     )
     .solution;
     let total: f64 = reference
@@ -461,5 +461,163 @@ fn progressive_reports_its_unshot_power() {
     assert!(
         unshot.windows(2).all(|w| w[1] <= w[0] + 1e-12),
         "{unshot:?}"
+    );
+}
+
+/// Progressive refinement shoots up to `BATCH` patches per step, their
+/// rows cast in parallel and applied in the order picked: the lightmaps
+/// are bit-identical on 1 and 2 threads, with ray-cast and hemicube rows.
+#[test]
+fn parallel_shooting_is_deterministic() {
+    let scene = load("cornell_box.gltf");
+    for method in METHODS {
+        let cfg = BakeConfig {
+            texels_per_meter: 24.0,
+            form_factors: method,
+            solver: Solver::Progressive,
+            tolerance: 1e-3,
+            ..BakeConfig::default()
+        };
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let b = radbake::bake(&scene, &cfg, &Silent).unwrap();
+                (
+                    b.maps.lightmaps.pages.clone(),
+                    b.transport.patch_light.map(|p| p.solution.shots),
+                )
+            })
+        };
+        let (one, two) = (run(1), run(2));
+        eprintln!("{method:?}: {:?} shots", one.1);
+        assert!(
+            one.0 == two.0,
+            "{method:?}: lightmaps differ between 1 and 2 threads"
+        );
+        assert_eq!(one.1, two.1);
+    }
+}
+
+/// Records the snapshots a progressive solve shows its sink:
+/// (unshot fraction, shots, mean texel value, ambient), and writes the
+/// first as a `.glb`.
+struct Recorder<'a> {
+    scene: &'a radbake::scene::Scene,
+    glb: std::path::PathBuf,
+    seen: std::sync::Mutex<Vec<(f64, u64, f64, f32)>>,
+}
+
+impl radbake::Progress for Recorder<'_> {
+    fn snapshot_every(&self) -> Option<f64> {
+        Some(0.0)
+    }
+    fn snapshot(&self, s: &radbake::Snapshot) {
+        let v = &s.lightmaps.texel_values;
+        let mean = v.iter().map(|v| v.x as f64).sum::<f64>() / v.len() as f64;
+        let mut seen = self.seen.lock().unwrap();
+        if seen.is_empty() {
+            radbake::output::write_snapshot_glb(&self.glb, self.scene, s.atlas, s.lightmaps)
+                .unwrap();
+        }
+        seen.push((s.unshot, s.shots, mean, s.ambient.x));
+    }
+}
+
+/// A progressive solve's snapshots (`bake --snapshot-every`, for
+/// `preview --watch`) carry Cohen et al.'s ambient term for the light not
+/// yet shot. In the furnace (a closed, uniform enclosure, exactly 2.0
+/// everywhere) that makes every snapshot right from the first, before a
+/// single shot, where the light shot so far alone reads far too little;
+/// the last snapshot is the converged solve. The first snapshot, written
+/// as a `.glb`, imports again with every instance.
+#[test]
+fn progressive_snapshots_carry_the_ambient_term() {
+    let furnace = load("furnace_box.gltf");
+    let dir = temp_dir("snapshot-ambient");
+    let rec = Recorder {
+        scene: &furnace,
+        glb: dir.join("furnace_box.snapshot.glb"),
+        seen: Default::default(),
+    };
+    let cfg = coarse(FormFactorMethod::Raycast, Solver::Progressive);
+    let b = radbake::bake(&furnace, &cfg, &rec).unwrap();
+    let seen = rec.seen.into_inner().unwrap();
+    eprintln!(
+        "{} snapshots; first {:?}, last {:?}",
+        seen.len(),
+        seen[0],
+        seen[seen.len() - 1]
+    );
+    assert!(seen.len() >= 3, "{seen:?}");
+    assert_eq!(seen[0].1, 0, "the first snapshot comes before any shot");
+    for &(unshot, shots, mean, _) in &seen {
+        assert!(
+            (mean - 2.0).abs() < 0.02 * 2.0,
+            "{shots} shots (unshot {unshot}): {mean}"
+        );
+    }
+    let (_, _, mean0, ambient0) = seen[0];
+    assert!(
+        mean0 - (ambient0 as f64) < 1.5,
+        "without the ambient term: {}",
+        mean0 - ambient0 as f64
+    );
+    let last = seen[seen.len() - 1];
+    assert!(
+        last.0 < cfg.tolerance as f64 && (last.3 as f64) < 1e-3,
+        "{last:?}"
+    );
+    assert!(seen.windows(2).all(|w| w[1].0 <= w[0].0 + 1e-12));
+    let back = radbake::scene::load(&rec.glb, &Default::default()).unwrap();
+    assert_eq!(back.instances.len(), furnace.instances.len());
+    assert!(mean_of(&b, "box") > 1.99);
+}
+
+/// `bake --snapshot-every 0 --solver progressive` writes snapshots during
+/// the solve (the `solve` stage's `"snapshots"` figure) and removes the
+/// snapshot file when the final `.baked.glb` is written; other solvers
+/// refuse the option with one line.
+#[test]
+fn snapshots_are_written_and_then_removed() {
+    let out = temp_dir("snapshot-cli");
+    let scene = scene_path("cornell_box.gltf");
+    let args = |solver: &'static str| {
+        vec![
+            "bake".into(),
+            scene.clone().into_os_string(),
+            "--out".into(),
+            out.clone().into_os_string(),
+            "--solver".into(),
+            solver.into(),
+            "--snapshot-every".into(),
+            "0".into(),
+            "--progress".into(),
+            "json".into(),
+            "--force".into(),
+        ]
+    };
+    let run = common::run_ok(args("progressive"));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    let snapshots = stderr
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v["stage"] == "solve")
+        .filter_map(|v| v["snapshots"].as_f64())
+        .fold(0.0, f64::max);
+    assert!(snapshots >= 2.0, "{snapshots} snapshots\n{stderr}");
+    assert!(out.join("cornell_box.baked.glb").exists());
+    assert!(!out.join("cornell_box.snapshot.glb").exists());
+    let refused = std::process::Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(args("jacobi"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--snapshot-every needs --solver progressive"),
+        "{err}"
     );
 }

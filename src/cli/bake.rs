@@ -1,7 +1,7 @@
 //! `radbake bake`: settings from defaults < preset < config file < flags,
 //! the up-to-date check, the bake, and its outputs written atomically.
 
-use super::progress::{Bars, JsonProgress};
+use super::progress::{Bars, JsonProgress, SnapshotWriter};
 use super::{classify, lib_err, parse_rgb, Outcome};
 use anyhow::Context as _;
 use clap::Args;
@@ -183,6 +183,12 @@ pub struct BakeArgs {
     /// Progress: `bars` (on a terminal) or `json` (one object per line on stderr).
     #[arg(long, value_enum, default_value = "bars")]
     pub progress: ProgressMode,
+    /// With --solver progressive: every this many seconds, write the solve
+    /// as it stands (direct light, the light shot so far and the ambient
+    /// term for the rest; no final gather) to `<out>/<stem>.snapshot.glb`,
+    /// for `radbake preview --watch <out>`; removed when the bake is done.
+    #[arg(long, value_name = "SECONDS")]
+    pub snapshot_every: Option<f64>,
     /// Print nothing but errors.
     #[arg(long, short, conflicts_with = "verbose")]
     pub quiet: bool,
@@ -344,17 +350,72 @@ pub fn run(args: &BakeArgs) -> Outcome {
             hidden: args.quiet,
         }),
     };
+    let snapshots = match args.snapshot_every {
+        Some(every) => Some(snapshot_writer(
+            args,
+            &config,
+            &scene,
+            &stem,
+            every,
+            progress.as_ref(),
+        )?),
+        None => None,
+    };
+    let sink: &dyn radbake::Progress = match &snapshots {
+        Some(w) => w,
+        None => progress.as_ref(),
+    };
     // Errors from the bake's stages name what is wrong but not the file.
-    let bake = radbake::bake(&scene, &config, progress.as_ref()).map_err(|e| {
+    let bake = radbake::bake(&scene, &config, sink).map_err(|e| {
         let (code, message) = lib_err(e);
         (code, format!("{}: {message}", args.scene.display()))
     })?;
     let mut report = bake.report(&args.scene.display().to_string());
     report.stages.insert(0, import);
+    if let Some(w) = &snapshots {
+        let (_, error) = &*w.outcome.lock().expect("snapshot lock");
+        report.warnings.extend(error.clone());
+    }
     let written = write_outputs(args, &stem, &bake, &mut report)?;
+    if let Some(w) = &snapshots {
+        // The final .baked.glb supersedes the snapshots.
+        let _ = std::fs::remove_file(&w.path);
+    }
     radbake::incremental::record(&args.out, &hash).map_err(lib_err)?;
     print_summary(args, &report, start, written.len());
     Ok(())
+}
+
+/// The `--snapshot-every` sink around `inner`; refused unless the solver
+/// is progressive (the others have no partial solution to show).
+fn snapshot_writer<'a>(
+    args: &BakeArgs,
+    config: &BakeConfig,
+    scene: &'a radbake::scene::Scene,
+    stem: &str,
+    every: f64,
+    inner: &'a dyn radbake::Progress,
+) -> Result<SnapshotWriter<'a>, (u8, String)> {
+    if config.solver != Solver::Progressive {
+        return Err((
+            1,
+            "--snapshot-every needs --solver progressive (the other solvers have no partial solution to show)".into(),
+        ));
+    }
+    if !(every.is_finite() && every >= 0.0) {
+        return Err((
+            1,
+            format!("--snapshot-every: {every} is not a number of seconds ≥ 0"),
+        ));
+    }
+    std::fs::create_dir_all(&args.out).map_err(|e| (3, format!("{}: {e}", args.out.display())))?;
+    Ok(SnapshotWriter {
+        inner,
+        every,
+        scene,
+        path: args.out.join(format!("{stem}.snapshot.glb")),
+        outcome: Mutex::new((0, None)),
+    })
 }
 
 /// Ctrl-C and --timeout: nothing but temporaries can be half-written

@@ -7,8 +7,11 @@ use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct PreviewArgs {
-    /// The baked scene (`<stem>.baked.glb` from `radbake bake`).
+    /// The baked scene (`<stem>.baked.glb` from `radbake bake`); with --watch, also a bake's output directory.
     pub scene: PathBuf,
+    /// Follow a running bake: show the newest `.baked.glb` or `.snapshot.glb` (`bake --solver progressive --snapshot-every S`) and reload it whenever it changes.
+    #[arg(long, conflicts_with = "headless")]
+    pub watch: bool,
     /// Render offscreen to --out instead of opening a window.
     #[arg(long, requires = "out")]
     pub headless: bool,
@@ -80,6 +83,7 @@ pub fn run(args: &PreviewArgs) -> Outcome {
             sdf_slice: args.sdf_slice,
         },
         sdf: args.sdf.clone(),
+        watch: args.watch,
     };
     radbake::preview::run(&opts).map_err(|e| {
         let code = match e.downcast_ref::<radbake::Error>() {

@@ -97,3 +97,47 @@ impl radbake::Progress for JsonProgress {
         self.emit(&s.0, s.1.max(s.2), s.2, s.3);
     }
 }
+
+/// `bake --snapshot-every`: passes everything on to `inner`, and writes
+/// each snapshot of the progressive solve to `path` (atomically) for
+/// `preview --watch`. A snapshot that cannot be written is counted; the
+/// first error becomes a warning in `report.json`.
+pub struct SnapshotWriter<'a> {
+    pub inner: &'a dyn radbake::Progress,
+    pub every: f64,
+    pub scene: &'a radbake::scene::Scene,
+    pub path: std::path::PathBuf,
+    /// (snapshots written, the first error).
+    pub outcome: Mutex<(u64, Option<String>)>,
+}
+
+impl radbake::Progress for SnapshotWriter<'_> {
+    fn begin(&self, stage: &str, total: u64) {
+        self.inner.begin(stage, total);
+    }
+    fn advance(&self, n: u64) {
+        self.inner.advance(n);
+    }
+    fn end(&self) {
+        self.inner.end();
+    }
+    fn figure(&self, name: &str, value: f64) {
+        self.inner.figure(name, value);
+    }
+    fn snapshot_every(&self) -> Option<f64> {
+        Some(self.every)
+    }
+    fn snapshot(&self, s: &radbake::Snapshot) {
+        let r = radbake::output::write_snapshot_glb(&self.path, self.scene, s.atlas, s.lightmaps);
+        let mut o = self.outcome.lock().expect("snapshot lock");
+        match r {
+            Ok(()) => {
+                o.0 += 1;
+                self.inner.figure("snapshots", o.0 as f64);
+            }
+            Err(e) => {
+                o.1.get_or_insert_with(|| format!("snapshot: {e}"));
+            }
+        }
+    }
+}

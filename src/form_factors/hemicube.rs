@@ -57,26 +57,27 @@ impl Hemicube {
 }
 
 /// A face's camera: right, up, forward, and the rows it covers.
-struct Face {
-    right: Vec3,
-    up: Vec3,
-    forward: Vec3,
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Face {
+    pub(crate) right: Vec3,
+    pub(crate) up: Vec3,
+    pub(crate) forward: Vec3,
     /// Side faces cover only up ∈ [0, 1] (rows `0..n/2` of the up axis).
-    side: bool,
+    pub(crate) side: bool,
 }
 
 /// A rasterised pixel: closest depth, its triangle and the barycentric
 /// weights of the triangle's corners 1 and 2 at the pixel's centre
 /// (perspective-correct), so the pixel lands on its texel without a ray.
 #[derive(Clone, Copy)]
-struct Pixel {
-    depth: f32,
-    tri: u32,
-    u: f32,
-    v: f32,
+pub(crate) struct Pixel {
+    pub(crate) depth: f32,
+    pub(crate) tri: u32,
+    pub(crate) u: f32,
+    pub(crate) v: f32,
 }
 
-const EMPTY: Pixel = Pixel {
+pub(crate) const EMPTY: Pixel = Pixel {
     depth: f32::INFINITY,
     tri: u32::MAX,
     u: 0.0,
@@ -276,70 +277,86 @@ fn floor(x: f32) -> i64 {
     i - i64::from((i as f32) > x)
 }
 
-/// Row i of F by the hemicube, sorted by column.
-pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFactorStats) {
+/// Where patch i's hemicube stands: its eye, just off the surface, and
+/// the five face cameras (top, then the four half sides).
+pub(crate) struct Cameras {
+    pub(crate) eye: Vec3,
+    pub(crate) faces: [Face; 5],
+}
+
+/// Patch i's hemicube cameras; `None` for a buried patch (an empty row).
+pub(crate) fn cameras(s: &Surfaces, i: usize) -> Option<Cameras> {
     if s.patch_buried(i) {
-        return (Vec::new(), FormFactorStats::default());
+        return None;
     }
-    let n = cube.n;
     let nrm = s.patches.n_ws[i];
     // Eye: the patch centroid pulled onto its nearest texel's surface, off it by an offset.
     let eye_surface = s.patches.p_ws[i];
     let eye =
         offset_ray_origin(eye_surface, nrm) + nrm * 1e-5 * (1.0 + eye_surface.abs().max_element());
     let (t, b) = frame(nrm);
-    let faces = [
-        Face {
-            right: t,
-            up: b,
-            forward: nrm,
-            side: false,
-        },
-        Face {
-            right: -b,
-            up: nrm,
-            forward: t,
-            side: true,
-        },
-        Face {
-            right: b,
-            up: nrm,
-            forward: -t,
-            side: true,
-        },
-        Face {
-            right: t,
-            up: nrm,
-            forward: b,
-            side: true,
-        },
-        Face {
-            right: -t,
-            up: nrm,
-            forward: -b,
-            side: true,
-        },
-    ];
-    let mut stats = FormFactorStats::default();
-    // Σ ΔF per patch, dense, and the patches touched (in first-seen order).
-    let mut sums = vec![0.0f32; s.patches.len()];
-    let mut touched: Vec<u32> = Vec::new();
-    let mut buf = vec![EMPTY; (n * n) as usize];
-    for face in &faces {
-        let rows = if face.side { n / 2 } else { n };
-        let pixels = (n * rows) as usize;
-        buf[..pixels].fill(EMPTY);
-        rasterize_face(s, eye, face, n, &mut buf[..pixels]);
-        let weights = if face.side { &cube.side } else { &cube.top };
+    let face = |right, up, forward, side| Face {
+        right,
+        up,
+        forward,
+        side,
+    };
+    Some(Cameras {
+        eye,
+        faces: [
+            face(t, b, nrm, false),
+            face(-b, nrm, t, true),
+            face(b, nrm, -t, true),
+            face(t, nrm, b, true),
+            face(-t, nrm, -b, true),
+        ],
+    })
+}
+
+/// Turns rasterised faces into a row: every pixel lands on the patch of
+/// the lightmap texel it shows and adds its delta form factor there.
+/// Shared by the CPU rasteriser and the GPU's ([`super::gpu_hemicube`]),
+/// so both devices land pixels by the same code.
+pub(crate) struct Resolve<'a> {
+    s: &'a Surfaces<'a>,
+    cube: &'a Hemicube,
+    eye: Vec3,
+    /// Σ ΔF per patch, dense, and the patches touched (in first-seen order).
+    sums: Vec<f32>,
+    touched: Vec<u32>,
+    stats: FormFactorStats,
+}
+
+impl<'a> Resolve<'a> {
+    pub(crate) fn new(s: &'a Surfaces<'a>, cube: &'a Hemicube, eye: Vec3) -> Self {
+        Resolve {
+            s,
+            cube,
+            eye,
+            sums: vec![0.0; s.patches.len()],
+            touched: Vec::new(),
+            stats: FormFactorStats::default(),
+        }
+    }
+
+    /// Adds one face's pixels (`n` × rows, rows along `up` from its lower
+    /// edge).
+    pub(crate) fn face(&mut self, face: &Face, pixels: &[Pixel]) {
+        let (s, eye) = (self.s, self.eye);
+        let weights = if face.side {
+            &self.cube.side
+        } else {
+            &self.cube.top
+        };
         // Runs of pixels show one triangle, and runs of those one lightmap
         // cell: its side and its cell's patch are looked up once per run.
         let mut side: Option<(u32, bool)> = None;
         let mut memo: Option<(u32, i64, i64, u32)> = None;
-        for (k, px) in buf[..pixels].iter().enumerate() {
-            stats.rays += 1;
+        for (k, px) in pixels.iter().enumerate() {
+            self.stats.rays += 1;
             let tri = px.tri;
             if tri == u32::MAX {
-                stats.escaped += 1;
+                self.stats.escaped += 1;
                 continue;
             }
             let seen = match side {
@@ -351,7 +368,7 @@ pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFac
                 }
             };
             if !seen {
-                stats.back_faces += 1;
+                self.stats.back_faces += 1;
                 continue;
             }
             // The visible point, from the pixel's interpolated weights.
@@ -370,26 +387,50 @@ pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFac
                         match s.land(tri, px.u, px.v, (p0 - eye).normalize_or(face.forward)) {
                             Landing::Texel(tx) => s.patches.of_texel[tx as usize].0,
                             Landing::BackFace => {
-                                stats.back_faces += 1;
+                                self.stats.back_faces += 1;
                                 continue;
                             }
                             _ => {
-                                stats.unmapped += 1;
+                                self.stats.unmapped += 1;
                                 continue;
                             }
                         }
                     }
                 },
             };
-            if sums[j as usize] == 0.0 {
-                touched.push(j);
+            if self.sums[j as usize] == 0.0 {
+                self.touched.push(j);
             }
-            sums[j as usize] += weights[k];
+            self.sums[j as usize] += weights[k];
         }
     }
-    touched.sort_unstable();
-    let out = touched.iter().map(|&j| (j, sums[j as usize])).collect();
-    (out, stats)
+
+    /// The row, sorted by column, and its counters.
+    pub(crate) fn finish(mut self) -> (Vec<(u32, f32)>, FormFactorStats) {
+        self.touched.sort_unstable();
+        let out = (self.touched.iter())
+            .map(|&j| (j, self.sums[j as usize]))
+            .collect();
+        (out, self.stats)
+    }
+}
+
+/// Row i of F by the hemicube, sorted by column.
+pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFactorStats) {
+    let Some(cams) = cameras(s, i) else {
+        return (Vec::new(), FormFactorStats::default());
+    };
+    let n = cube.n;
+    let mut resolve = Resolve::new(s, cube, cams.eye);
+    let mut buf = vec![EMPTY; (n * n) as usize];
+    for face in &cams.faces {
+        let rows = if face.side { n / 2 } else { n };
+        let pixels = (n * rows) as usize;
+        buf[..pixels].fill(EMPTY);
+        rasterize_face(s, cams.eye, face, n, &mut buf[..pixels]);
+        resolve.face(face, &buf[..pixels]);
+    }
+    resolve.finish()
 }
 
 /// Every row of F by the hemicube at resolution `n`.

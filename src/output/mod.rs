@@ -305,6 +305,29 @@ pub fn write_report(out_dir: &Path, report: &Report) -> Result<PathBuf> {
     Ok(json)
 }
 
+/// Writes a progressive solve's snapshot ([`crate::Snapshot`]) as a baked
+/// `.glb` at `path` (atomically): the scene with these lightmaps, as
+/// `write_engine_outputs` writes the final one, for `preview --watch`.
+///
+/// # Errors
+/// [`Error::Io`] / [`Error::Encode`].
+pub fn write_snapshot_glb(
+    path: &Path,
+    scene: &crate::scene::Scene,
+    atlas: &crate::atlas::Atlas,
+    lightmaps: &Lightmaps,
+) -> Result<()> {
+    let encoded: Vec<png8::EncodedPage> = (0..lightmaps.pages.len())
+        .map(|page| png8::encode_page(lightmaps, atlas, page))
+        .collect();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let glb = baked::baked_glb(scene, atlas, &encoded, None, &name)?;
+    write_bytes_atomic(path, &glb)
+}
+
 /// Writes the engine outputs into `out_dir`: `<stem>.baked.glb` (see
 /// [`baked`]), `lightmap_<page>_srgb.png` (value / scale, sRGB-encoded,
 /// the same images the .glb embeds) and `manifest.json` (per instance: the

@@ -17,6 +17,7 @@
 pub mod log;
 pub mod maps;
 pub mod radiosity;
+pub mod snapshot;
 pub mod summary;
 pub mod texel_light;
 pub mod transport;

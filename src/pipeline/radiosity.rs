@@ -11,6 +11,7 @@
 //! gathering sweeps ([`progressive::gather_sweeps`]).
 
 use super::log::Log;
+use super::snapshot::Snapshots;
 use super::texel_light::{PatchLight, Rays, TexelLight};
 use crate::atlas::Atlas;
 use crate::config::{self, BakeConfig, FormFactorMethod, Solver};
@@ -59,7 +60,6 @@ pub fn run(
     check_direct_solver(config, s.patches.len())?;
     let progress = log.progress();
     let advance = |n| progress.advance(n);
-    let unshot = |u| progress.figure("unshot", u);
     // `device = "gpu"`: one batch caster for the form factors and the gather.
     let gpu = gpu_caster(s, config, &mut log.warnings);
 
@@ -86,13 +86,15 @@ pub fn run(
     };
     log.begin("solve", total);
     let patch_direct = std::mem::take(&mut direct.patch);
+    let dilate = 2 * config.padding;
+    let mut watch = Snapshots::new(progress, s, atlas, || direct.parts.baked(), dilate);
     let patch_light = solve_patches(
         s,
         config,
         form_factors,
         &direct.sampled,
         patch_direct,
-        (&advance, &unshot),
+        (&advance, &mut watch),
     )?;
     if patch_light.solution.residual >= config.tolerance && config.solver != Solver::Direct {
         log.warnings.push(format!(
@@ -375,7 +377,7 @@ fn solve_patches(
     form_factors: Option<FormFactors>,
     sampled: &[bool],
     patch_direct: Vec<Vec3>,
-    (advance, unshot): (&(dyn Fn(u64) + Sync), &(dyn Fn(f64) + Sync)),
+    (advance, watch): (&(dyn Fn(u64) + Sync), &mut Snapshots),
 ) -> Result<PatchLight> {
     let emission: Vec<Vec3> = (0..s.patches.len())
         .map(|i| {
@@ -415,9 +417,12 @@ fn solve_patches(
         None => {
             let rows = OnDemand::new(s, config);
             let max_shots = iterations as u64 * s.patches.len() as u64;
-            let mut solution =
-                progressive::solve(&rows, &system, tolerance, max_shots, advance, unshot).solution;
-            let row_sums = progressive::gather_sweeps(&rows, &system, &mut solution, 2);
+            let mut observe = |p: &progressive::Partial| watch.observe(&system, p);
+            let shot =
+                progressive::solve(&rows, &system, tolerance, max_shots, advance, &mut observe);
+            let mut solution = shot.solution;
+            let row_sums =
+                progressive::gather_sweeps(&rows, &system, &mut solution, 2, Some(&shot.rows));
             (solution, row_sums, rows.stats())
         }
     };

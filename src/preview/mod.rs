@@ -39,6 +39,7 @@ pub mod model;
 pub mod options;
 pub mod probe_light;
 pub mod renderer;
+pub mod watch;
 pub mod window;
 
 pub use crate::adapter::{describe, device, instance, offscreen_device, NoAdapter};
@@ -59,6 +60,12 @@ pub fn run(opts: &Options) -> Result<()> {
     if !(dfao.is_finite() && (0.0..=1e4).contains(&dfao)) {
         bail!("--dfao-reach must be between 0 and 10000 metres");
     }
+    let mut watch = opts.watch.then(|| watch::Watch::new(&opts.scene));
+    let mut opts = opts.clone();
+    if let Some(w) = &mut watch {
+        opts.scene = first_file(w)?;
+    }
+    let opts = &opts;
     let t = Instant::now();
     let mut model = Model::load(&opts.scene)?;
     if let Some(path) = &opts.sdf {
@@ -114,6 +121,22 @@ pub fn run(opts: &Options) -> Result<()> {
         eprintln!("wrote {}", out.display());
         Ok(())
     } else {
-        window::run(model, opts)
+        window::run(model, opts, watch)
+    }
+}
+
+/// `--watch`: the first file to show, waiting (politely, every 250 ms)
+/// until a bake has written one.
+fn first_file(w: &mut watch::Watch) -> Result<std::path::PathBuf> {
+    let mut told = false;
+    loop {
+        if let Some(path) = w.changed() {
+            return Ok(path);
+        }
+        if !told {
+            eprintln!("waiting for a .baked.glb or .snapshot.glb to appear (Ctrl-C to stop)");
+            told = true;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(250));
     }
 }

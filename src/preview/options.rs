@@ -159,6 +159,10 @@ pub struct Options {
     /// A distance field to use in place of the bake's (`radbake sdf
     /// --out`'s `.ktx2`, placed by its `.json` sidecar).
     pub sdf: Option<PathBuf>,
+    /// Window: follow a running bake ([`super::watch`]): `scene` may be
+    /// the bake's directory; the newest `.baked.glb` or `.snapshot.glb`
+    /// is shown and reloaded whenever it changes.
+    pub watch: bool,
 }
 
 /// Picks the first viewpoint for `model` in an image of `aspect`.

@@ -6,6 +6,7 @@ use super::headless::write_png;
 use super::model::Model;
 use super::options::{initial_camera, Options, ToneMap, ViewMode};
 use super::renderer::Renderer;
+use super::watch::Watch;
 use anyhow::{anyhow, Context as _, Result};
 use glam::Vec3;
 use std::collections::HashSet;
@@ -50,6 +51,9 @@ struct App {
     fps: f64,
     frames: u32,
     screenshots: u32,
+    /// `--watch`: the bake being followed, and when it was last looked at.
+    watch: Option<Watch>,
+    watched: Instant,
 }
 
 impl App {
@@ -209,7 +213,48 @@ impl App {
         Ok(())
     }
 
+    /// `--watch`: every 250 ms, reload the model if the bake wrote a newer
+    /// file, keeping the camera, the settings and the distance field. A
+    /// file that cannot be read keeps the picture as it is, with a warning.
+    fn follow(&mut self) {
+        if self.watched.elapsed().as_millis() < 250 {
+            return;
+        }
+        self.watched = Instant::now();
+        let (Some(w), Some(s)) = (&mut self.watch, &mut self.state) else {
+            return;
+        };
+        let Some(path) = w.changed() else {
+            return;
+        };
+        let mut model = match Model::load(&path) {
+            Ok(m) => m,
+            Err(e) => {
+                eprintln!("warning: --watch: {}: {e:#}", path.display());
+                return;
+            }
+        };
+        if model.field.is_none() {
+            model.field = self.model.field.take();
+        }
+        let r = &s.renderer;
+        let (device, queue) = (r.device().clone(), r.queue().clone());
+        let mut renderer = Renderer::new(
+            &device,
+            &queue,
+            r.format(),
+            &model,
+            r.camera.clone(),
+            r.settings,
+        );
+        renderer.resize(s.config.width, s.config.height);
+        s.renderer = renderer;
+        self.model = model;
+        eprintln!("reloaded {}", path.display());
+    }
+
     fn frame(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
+        self.follow();
         let now = Instant::now();
         let dt = (now - self.last_frame).as_secs_f32().min(0.1);
         self.last_frame = now;
@@ -385,7 +430,7 @@ impl ApplicationHandler for App {
 }
 
 /// Opens the window and runs until it is closed (or `opts.frames` are drawn).
-pub fn run(model: Model, opts: &Options) -> Result<()> {
+pub fn run(model: Model, opts: &Options, watch: Option<Watch>) -> Result<()> {
     let start_camera = initial_camera(&model, &opts.viewpoint)?;
     let event_loop = EventLoop::new().map_err(|e| {
         anyhow!("cannot open a window ({e}); is there a display (DISPLAY/WAYLAND_DISPLAY)? Use --headless to render offscreen")
@@ -405,6 +450,8 @@ pub fn run(model: Model, opts: &Options) -> Result<()> {
         fps: 0.0,
         frames: 0,
         screenshots: 0,
+        watch,
+        watched: Instant::now(),
     };
     event_loop.run_app(&mut app).context("window event loop")?;
     match app.error {

@@ -1,12 +1,14 @@
 //! Progressive refinement (Cohen, Chen, Wallace & Greenberg 1988): keep the
-//! unshot radiance ΔLᵢ of every patch; repeatedly take the patch with the
-//! most unshot power ΔLᵢ Aᵢ, get its shooting coefficients on demand
+//! unshot radiance ΔLᵢ of every patch; repeatedly take the patches with the
+//! most unshot power ΔLᵢ Aᵢ, get their shooting coefficients on demand
 //! ([`ShootingRows`]: a ray-cast or hemicube row from the shooter, or a
 //! stored matrix's column) and distribute: ΔHⱼ = Sᵢⱼ ΔLᵢ, Hⱼ += ΔHⱼ,
-//! ΔLⱼ += ρⱼ ΔHⱼ. Nothing n × n is kept: memory is O(n) plus a row cache of
-//! fixed size (a patch is typically shot many times). Stops when the unshot
-//! power falls below `tolerance` × the initial power. [`gather_sweeps`]
-//! then gathers at every patch from its own row.
+//! ΔLⱼ += ρⱼ ΔHⱼ. Up to [`BATCH`] shooters go per step, their rows cast in
+//! parallel and applied in a fixed order, so the result does not depend on
+//! the thread count. Nothing n × n is kept: memory is O(n) plus a row cache
+//! of fixed size (a patch is typically shot many times). Stops when the
+//! unshot power falls below `tolerance` × the initial power.
+//! [`gather_sweeps`] then gathers at every patch from its own row.
 
 use super::{GatheringRows, ShootingRows, Solution, System};
 use glam::Vec3;
@@ -19,6 +21,8 @@ pub struct Progressive {
     pub solution: Solution,
     /// Σⱼ Fᵢⱼ of every patch that shot (NaN for patches that never did).
     pub row_sums: Vec<f32>,
+    /// The shooting rows still cached at the end, for [`gather_sweeps`].
+    pub rows: ShotRows,
 }
 
 /// A tournament (winner) tree over the patches' unshot powers: the index of
@@ -77,103 +81,301 @@ impl Tournament {
     }
 }
 
+/// A progressive solve as it stands, shown to `solve`'s observer every 64
+/// shots and at the end.
+pub struct Partial<'a> {
+    /// The unshot power left, a fraction of the initial.
+    pub unshot_fraction: f64,
+    /// Hⱼ so far (direct plus the light shot so far), irradiance / π.
+    pub irradiance: &'a [Vec3],
+    /// ΔLⱼ, the radiance not yet shot.
+    pub unshot: &'a [Vec3],
+    /// Shots fired.
+    pub shots: u64,
+    /// True at the last call.
+    pub done: bool,
+}
+
+/// The ambient term of Cohen, Chen, Wallace & Greenberg (1988, §3.2):
+/// the light not yet shot, spread as if it arrived evenly everywhere and
+/// kept interreflecting: ambient = R Σᵢ ΔLᵢ Aᵢ / Σᵢ Aᵢ with the
+/// interreflection factor R = 1 / (1 − ρ̄), ρ̄ = Σᵢ ρᵢ Aᵢ / Σᵢ Aᵢ, per
+/// channel. Added to every patch's H (irradiance / π) it gives a usable
+/// picture long before convergence, exact for a closed uniform enclosure,
+/// and it falls to zero as the unshot light does.
+pub fn ambient(sys: &System, unshot: &[Vec3]) -> Vec3 {
+    let (mut area, mut rho, mut power) = (0.0f64, [0.0f64; 3], [0.0f64; 3]);
+    for (i, u) in unshot.iter().enumerate() {
+        let a = sys.area[i] as f64;
+        area += a;
+        for c in 0..3 {
+            rho[c] += sys.albedo[i][c] as f64 * a;
+            power[c] += u[c] as f64 * a;
+        }
+    }
+    if area <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let term = |c: usize| {
+        let r = (rho[c] / area).min(0.999);
+        (power[c] / area / (1.0 - r)) as f32
+    };
+    Vec3::new(term(0), term(1), term(2))
+}
+
 /// Up to this many patches the shooter is found by a linear scan.
 const SCAN_MAX_PATCHES: usize = 1 << 15;
 
 /// Row-cache budget in (column, value) entries: 32 M entries = 256 MB.
 const CACHE_ENTRIES: usize = 32 << 20;
 
+/// Shooters per step: up to this many patches shoot together, their rows
+/// computed concurrently (one row per thread) and then applied one after
+/// another in the order they were picked.
+pub const BATCH: usize = 16;
+
+/// A patch joins a step only if its unshot power is at least this fraction
+/// of the step's first (largest) shooter's: a step never shoots a patch
+/// that a serial solve would have left for much later.
+const BATCH_FLOOR: f64 = 0.5;
+
+/// The shooting state: radiance, irradiance and unshot radiance per patch,
+/// their unshot powers ΔLᵢ·1 Aᵢ, and the structure that finds the largest.
+struct Shooting<'a> {
+    sys: &'a System<'a>,
+    radiance: Vec<Vec3>,
+    irradiance: Vec<Vec3>,
+    unshot: Vec<Vec3>,
+    powers: Vec<f64>,
+    tree: Option<Tournament>,
+    remaining: f64,
+}
+
+impl<'a> Shooting<'a> {
+    fn new(sys: &'a System<'a>) -> Shooting<'a> {
+        let radiance = sys.initial_radiance();
+        let mut s = Shooting {
+            sys,
+            irradiance: sys.direct.to_vec(),
+            unshot: radiance.clone(),
+            radiance,
+            powers: Vec::new(),
+            tree: None,
+            remaining: 0.0,
+        };
+        s.powers = (0..sys.len()).map(|i| s.power(i)).collect();
+        s.remaining = s.powers.iter().sum();
+        // Small scenes scan (a contiguous scan of a few thousand powers
+        // beats the tree's scattered updates when rows are long: 34.3 ms
+        // against 93.3 ms on the Cornell bench); large ones use the tree.
+        // Both pick the same shooter, so results do not depend on the choice.
+        s.tree = (sys.len() > SCAN_MAX_PATCHES).then(|| Tournament::new(&s.powers));
+        s
+    }
+
+    fn power(&self, i: usize) -> f64 {
+        (self.unshot[i].element_sum() * self.sys.area[i]).max(0.0) as f64
+    }
+
+    /// The patch with the most unshot power (the first index on ties, so
+    /// the order is deterministic).
+    fn argmax(&self) -> usize {
+        match &self.tree {
+            Some(t) => t.argmax(),
+            None => (0..self.powers.len()).fold(0, |b, k| {
+                if self.powers[k] > self.powers[b] {
+                    k
+                } else {
+                    b
+                }
+            }),
+        }
+    }
+
+    fn set_power(&mut self, i: usize) {
+        let p = self.power(i);
+        self.remaining += p - self.powers[i];
+        self.powers[i] = p;
+        if let Some(t) = &mut self.tree {
+            t.update(&self.powers, i);
+        }
+    }
+
+    /// The next step's shooters, each with the unshot radiance it shoots
+    /// (taken from it now): the largest first, then every next-largest
+    /// down to [`BATCH_FLOOR`] of it, at most `limit`. Depends only on the
+    /// powers, never on the thread count.
+    fn pick(&mut self, limit: usize) -> Vec<(usize, Vec3)> {
+        let mut batch = Vec::with_capacity(limit);
+        let mut first = 0.0;
+        while batch.len() < limit {
+            let i = self.argmax();
+            let p = self.powers.get(i).copied().unwrap_or(0.0);
+            if p == 0.0 || p < first * BATCH_FLOOR {
+                break;
+            }
+            if batch.is_empty() {
+                first = p;
+            }
+            batch.push((i, self.unshot[i]));
+            self.unshot[i] = Vec3::ZERO;
+            self.set_power(i);
+        }
+        batch
+    }
+
+    fn show(&self, initial: f64, shots: u64, done: bool, observe: &mut dyn FnMut(&Partial)) {
+        observe(&Partial {
+            unshot_fraction: self.remaining.max(0.0) / initial,
+            irradiance: &self.irradiance,
+            unshot: &self.unshot,
+            shots,
+            done,
+        });
+    }
+
+    /// Distributes `shoot` along shooter's coefficients: ΔHⱼ = Sᵢⱼ ΔLᵢ,
+    /// Hⱼ += ΔHⱼ, Lⱼ += ρⱼ ΔHⱼ, ΔLⱼ += ρⱼ ΔHⱼ.
+    fn shoot(&mut self, row: &[(u32, f32)], shoot: Vec3) {
+        for &(j, s) in row {
+            let j = j as usize;
+            let dh = shoot * s;
+            self.irradiance[j] += dh;
+            let dl = self.sys.albedo[j] * dh;
+            self.radiance[j] += dl;
+            self.unshot[j] += dl;
+            self.set_power(j);
+        }
+    }
+}
+
+/// Rows of patches that may shoot again. A row pays only while its patch
+/// can still gather unshot light: a black patch (ρ = 0) shoots once, so
+/// its row is never kept ([`RowCache::pays`]). When the budget is full,
+/// the half of the rows whose patches hold the least unshot power (the
+/// least likely to shoot soon) is dropped. What is cached changes the
+/// time, never the result.
+#[derive(Default)]
+pub struct ShotRows {
+    rows: HashMap<u32, (Vec<(u32, f32)>, f32)>,
+    entries: usize,
+}
+
+type RowCache = ShotRows;
+
+impl ShotRows {
+    fn pays(i: usize, sys: &System) -> bool {
+        sys.albedo[i] != Vec3::ZERO
+    }
+
+    /// Drops rows until `need` more entries fit, never those of `batch`.
+    fn make_room(&mut self, need: usize, st: &Shooting, batch: &[(usize, Vec3)]) {
+        if self.entries + need <= CACHE_ENTRIES {
+            return;
+        }
+        let mut held: Vec<(f64, u32)> = (self.rows.keys())
+            .filter(|&&k| batch.iter().all(|b| b.0 != k as usize))
+            .map(|&k| (st.powers[k as usize], k))
+            .collect();
+        held.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut dropped = 0;
+        for &(_, k) in &held {
+            if dropped >= held.len().div_ceil(2) && self.entries + need <= CACHE_ENTRIES {
+                break;
+            }
+            if let Some(r) = self.rows.remove(&k) {
+                self.entries -= r.0.len();
+            }
+            dropped += 1;
+        }
+    }
+
+    fn insert(&mut self, i: usize, row: (Vec<(u32, f32)>, f32)) {
+        self.entries += row.0.len();
+        self.rows.insert(i as u32, row);
+    }
+}
+
 /// Solves by shooting until the unshot power is below `tolerance` of the
-/// initial power or `max_shots` shots have been fired. `unshot` is told
-/// the unshot power left (a fraction of the initial) every 64 shots and at
-/// the end: the convergence of Cohen et al. (1988), fig. 5, as it happens.
+/// initial power or `max_shots` shots have been fired. Each step shoots up
+/// to [`BATCH`] patches ([`Shooting::pick`]): their missing rows are
+/// computed in parallel, one row per thread (splitting one row's rays over
+/// threads was tried and was slower), then the shots are applied in the
+/// order picked. The steps depend on the powers alone, so the result is
+/// the same on any number of threads. `observe` is shown the solve as it
+/// stands ([`Partial`]) every 64 shots and at the end: the convergence of
+/// Cohen et al. (1988), fig. 5, as it happens.
 pub fn solve(
     rows: &dyn ShootingRows,
     sys: &System,
     tolerance: f32,
     max_shots: u64,
     advance: &dyn Fn(u64),
-    unshot_left: &dyn Fn(f64),
+    observe: &mut dyn FnMut(&Partial),
 ) -> Progressive {
     let n = sys.len();
-    let mut radiance = sys.initial_radiance();
-    let mut irradiance: Vec<Vec3> = sys.direct.to_vec();
-    let mut unshot = radiance.clone();
+    let mut st = Shooting::new(sys);
+    let initial = st.remaining;
     let mut row_sums = vec![f32::NAN; n];
-    let power = |l: Vec3, i: usize| (l.element_sum() * sys.area[i]).max(0.0) as f64;
-    let mut powers: Vec<f64> = (0..n).map(|i| power(unshot[i], i)).collect();
-    let initial: f64 = powers.iter().sum();
-    let mut remaining = initial;
-    // Small scenes scan (a contiguous scan of a few thousand powers beats
-    // the tree's scattered updates when rows are long: 34.3 ms against
-    // 93.3 ms on the Cornell bench); large ones use the tree. Both pick the
-    // same shooter, so results do not depend on the choice.
-    let mut tree = (n > SCAN_MAX_PATCHES).then(|| Tournament::new(&powers));
-    let mut cache: HashMap<u32, (Vec<(u32, f32)>, f32)> = HashMap::new();
-    let mut cached = 0usize;
+    let mut cache = RowCache::default();
     let mut shots = 0u64;
+    if initial > 0.0 {
+        st.show(initial, 0, false, observe);
+    }
     while initial > 0.0 && shots < max_shots {
-        if shots % 4096 == 0 {
-            remaining = powers.iter().sum(); // no drift from incremental updates
+        if shots % 4096 < BATCH as u64 {
+            st.remaining = st.powers.iter().sum(); // no drift from incremental updates
         }
-        if remaining / initial < tolerance as f64 {
+        if st.remaining / initial < tolerance as f64 {
             break;
         }
-        // The shooter: most unshot power (the first index wins ties, so the
-        // order is deterministic).
-        let i = match &tree {
-            Some(t) => t.argmax(),
-            None => (0..n).fold(0, |b, k| if powers[k] > powers[b] { k } else { b }),
-        };
-        if powers[i] == 0.0 {
+        let batch = st.pick(BATCH.min((max_shots - shots) as usize));
+        if batch.is_empty() {
             break;
         }
-        let shoot = unshot[i];
-        unshot[i] = Vec3::ZERO;
-        remaining -= powers[i];
-        powers[i] = 0.0;
-        if let Some(t) = &mut tree {
-            t.update(&powers, i);
-        }
-        if !cache.contains_key(&(i as u32)) {
-            let r = rows.shooting_row(i);
-            if cached + r.0.len() > CACHE_ENTRIES {
-                cache.clear();
-                cached = 0;
+        let fresh: Vec<_> = batch
+            .iter()
+            .filter(|(i, _)| !cache.rows.contains_key(&(*i as u32)))
+            .map(|&(i, _)| i)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|i| (i, rows.shooting_row(i)))
+            .collect();
+        let mut fresh: HashMap<usize, _> = fresh.into_iter().collect();
+        let need = (fresh.iter())
+            .filter(|(&i, _)| RowCache::pays(i, sys))
+            .map(|(_, r)| r.0.len())
+            .sum();
+        cache.make_room(need, &st, &batch);
+        for &(i, shoot) in &batch {
+            if let Some(r) = fresh.remove(&i) {
+                if !RowCache::pays(i, sys) {
+                    row_sums[i] = r.1;
+                    st.shoot(&r.0, shoot);
+                    continue;
+                }
+                cache.insert(i, r);
             }
-            cached += r.0.len();
-            cache.insert(i as u32, r);
+            let (row, sum) = &cache.rows[&(i as u32)];
+            row_sums[i] = *sum;
+            st.shoot(row, shoot);
         }
-        let (row, sum) = &cache[&(i as u32)];
-        row_sums[i] = *sum;
-        for &(j, s) in row {
-            let j = j as usize;
-            let dh = shoot * s;
-            irradiance[j] += dh;
-            let dl = sys.albedo[j] * dh;
-            radiance[j] += dl;
-            unshot[j] += dl;
-            let p = power(unshot[j], j);
-            remaining += p - powers[j];
-            powers[j] = p;
-            if let Some(t) = &mut tree {
-                t.update(&powers, j);
-            }
-        }
-        shots += 1;
-        advance(1);
-        if shots % 64 == 0 {
-            unshot_left(remaining.max(0.0) / initial);
+        let before = shots;
+        shots += batch.len() as u64;
+        advance(batch.len() as u64);
+        if shots / 64 != before / 64 {
+            st.show(initial, shots, false, observe);
         }
     }
-    let remaining: f64 = powers.iter().sum();
+    let remaining: f64 = st.powers.iter().sum();
     if initial > 0.0 {
-        unshot_left(remaining / initial);
+        st.remaining = remaining;
+        st.show(initial, shots, true, observe);
     }
     Progressive {
         solution: Solution {
-            radiance,
-            irradiance,
+            radiance: st.radiance,
+            irradiance: st.irradiance,
             iterations: 0,
             residual: if initial > 0.0 {
                 (remaining / initial) as f32
@@ -183,6 +385,7 @@ pub fn solve(
             shots,
         },
         row_sums,
+        rows: cache,
     }
 }
 
@@ -192,19 +395,29 @@ pub fn solve(
 /// receivers (and biased for the hemicube's point-sampled rows); each sweep
 /// puts the accuracy back on the receiving side (dividing the shooting
 /// error by ~1/ρ). Rows are made and dropped, so memory stays O(n).
-/// Returns Σⱼ Fᵢⱼ per patch (every patch's row is computed).
+/// `shot`: rows the solve still holds, shooting rows made from gathering
+/// rows by reciprocity (Sⱼₖ = Fⱼₖ Aⱼ / Aₖ, as [`crate::form_factors::rows::OnDemand`]
+/// makes them), turned back (Fⱼₖ = Sⱼₖ Aₖ / Aⱼ) instead of cast again.
+/// Returns Σₖ Fⱼₖ per patch (every patch's row is computed).
 pub fn gather_sweeps(
     rows: &dyn GatheringRows,
     sys: &System,
     solution: &mut Solution,
     sweeps: u32,
+    shot: Option<&ShotRows>,
 ) -> Vec<f32> {
+    let row_of = |j: usize| match shot.and_then(|c| c.rows.get(&(j as u32))) {
+        Some((s, _)) => (s.iter())
+            .map(|&(k, v)| (k, v * sys.area[k as usize] / sys.area[j]))
+            .collect(),
+        None => rows.gathering_row(j),
+    };
     let mut gathered: Vec<(Vec3, f32)> = Vec::new();
     for _ in 0..sweeps {
         gathered = (0..sys.len())
             .into_par_iter()
             .map(|j| {
-                let row = rows.gathering_row(j);
+                let row = row_of(j);
                 let h = row
                     .iter()
                     .map(|&(k, f)| solution.radiance[k as usize] * f)

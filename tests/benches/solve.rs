@@ -37,9 +37,16 @@ fn solve(c: &mut Criterion) {
 
     let columns = StoredColumns::new(ff);
     let max_shots = max as u64 * bake.patches.len() as u64;
-    let shots = progressive::solve(&columns, &system, tolerance, max_shots, &|_| {}, &|_| {})
-        .solution
-        .shots;
+    let shots = progressive::solve(
+        &columns,
+        &system,
+        tolerance,
+        max_shots,
+        &|_| {},
+        &mut |_| {},
+    )
+    .solution
+    .shots;
     group.throughput(Throughput::Elements(shots));
     group.bench_function(format!("progressive_{shots}_shots"), |b| {
         b.iter(|| {
@@ -49,7 +56,7 @@ fn solve(c: &mut Criterion) {
                 tolerance,
                 max_shots,
                 &|_| {},
-                &|_| {},
+                &mut |_| {},
             )
         })
     });

@@ -265,6 +265,7 @@ fn preview(glb: &Path, png: &Path, camera: &str) -> Option<Vec<[f32; 3]>> {
             ..Default::default()
         },
         sdf: None,
+        watch: false,
     };
     if let Err(e) = radbake::preview::run(&opts) {
         let text = format!("{e:#}");
