@@ -433,6 +433,62 @@ pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFac
     resolve.finish()
 }
 
+/// Rows of F (sorted by column) with their counters, in patch order.
+pub type Rows = Vec<(Vec<(u32, f32)>, FormFactorStats)>;
+
+/// Rows of F by hemicubes rendered elsewhere, a batch of patches at a
+/// time: the GPU's ([`super::gpu_hemicube`]).
+pub trait RowBatches: Sync {
+    /// Rows (sorted by column) of `patches`, in their order.
+    ///
+    /// # Errors
+    /// The device failed; the caller computes the rows on the CPU.
+    fn rows(&self, s: &Surfaces, cube: &Hemicube, patches: &[usize]) -> anyhow::Result<Rows>;
+    /// The device, for the bake's warning.
+    fn describe(&self) -> String;
+}
+
+/// Hemicubes of resolution `n` on the GPU (`device = "gpu"`).
+///
+/// # Errors
+/// No adapter, a driver that refuses the pipeline, or a build without the
+/// `gpu` feature: the caller renders hemicubes on the CPU.
+pub fn gpu(geometry: &crate::geometry::Geometry, n: u32) -> anyhow::Result<Box<dyn RowBatches>> {
+    #[cfg(feature = "gpu")]
+    return Ok(Box::new(super::gpu_hemicube::GpuHemicubes::new(
+        geometry, n,
+    )?));
+    #[cfg(not(feature = "gpu"))]
+    {
+        let _ = (geometry, n);
+        anyhow::bail!("radbake was built without the `gpu` feature")
+    }
+}
+
+/// Every row of F from `gpu`, a pass of hemicubes at a time.
+///
+/// # Errors
+/// As [`RowBatches::rows`].
+pub fn compute_on(
+    s: &Surfaces,
+    gpu: &dyn RowBatches,
+    n: u32,
+    advance: &(dyn Fn(u64) + Sync),
+) -> anyhow::Result<FormFactors> {
+    let cube = Hemicube::new(n);
+    let patches: Vec<usize> = (0..s.patches.len()).collect();
+    let mut stats = FormFactorStats::default();
+    let mut rows = Vec::with_capacity(patches.len());
+    for chunk in patches.chunks(4096) {
+        for (r, st) in gpu.rows(s, &cube, chunk)? {
+            stats.add(&st);
+            rows.push(r);
+        }
+        advance(chunk.len() as u64);
+    }
+    Ok(FormFactors::from_rows(patches.len(), rows, stats))
+}
+
 /// Every row of F by the hemicube at resolution `n`.
 pub fn compute(s: &Surfaces, n: u32, advance: &(dyn Fn(u64) + Sync)) -> FormFactors {
     let cube = Hemicube::new(n);

@@ -10,6 +10,8 @@
 //! closed forms used by the tests.
 
 pub mod analytic;
+#[cfg(feature = "gpu")]
+pub mod gpu_hemicube;
 pub mod hemicube;
 pub mod raycast;
 pub mod rows;

@@ -21,6 +21,10 @@ pub struct OnDemand<'a> {
     seed: u64,
     cube: Option<hemicube::Hemicube>,
     stats: Mutex<FormFactorStats>,
+    /// Hemicubes rendered on the GPU, a batch of rows per pass; dropped
+    /// (and the error kept for the bake's warnings) if it fails.
+    gpu: Option<Box<dyn hemicube::RowBatches>>,
+    gpu_failed: Mutex<Option<String>>,
 }
 
 impl<'a> OnDemand<'a> {
@@ -34,7 +38,56 @@ impl<'a> OnDemand<'a> {
             cube: (config.form_factors == FormFactorMethod::Hemicube)
                 .then(|| hemicube::Hemicube::new(config.hemicube_resolution)),
             stats: Mutex::new(FormFactorStats::default()),
+            gpu: None,
+            gpu_failed: Mutex::new(None),
         }
+    }
+
+    /// Hemicube rows from `gpu` (the method must be the hemicube).
+    pub fn with_gpu(mut self, gpu: Box<dyn hemicube::RowBatches>) -> Self {
+        self.gpu = Some(gpu);
+        self
+    }
+
+    /// Why the GPU stopped rendering rows, if it did.
+    pub fn gpu_failed(&self) -> Option<String> {
+        self.gpu_failed.lock().ok().and_then(|e| e.clone())
+    }
+
+    /// Rows of `batch` in one GPU pass where there is a GPU (and it has not
+    /// failed), else one per thread on the CPU.
+    fn rows(&self, batch: &[usize]) -> Vec<Vec<(u32, f32)>> {
+        use rayon::prelude::*;
+        let working = self.gpu_failed.lock().is_ok_and(|e| e.is_none());
+        if let (Some(gpu), Some(cube), true) = (&self.gpu, &self.cube, working) {
+            match gpu.rows(self.surfaces, cube, batch) {
+                Ok(rows) => {
+                    if let Ok(mut s) = self.stats.lock() {
+                        rows.iter().for_each(|r| s.add(&r.1));
+                    }
+                    return rows.into_iter().map(|r| r.0).collect();
+                }
+                Err(e) => {
+                    if let Ok(mut f) = self.gpu_failed.lock() {
+                        *f = Some(format!("{e:#}"));
+                    }
+                }
+            }
+        }
+        batch.par_iter().map(|&i| self.row(i)).collect()
+    }
+
+    /// Sᵢⱼ = Fᵢⱼ Aᵢ / Aⱼ and Σⱼ Fᵢⱼ from row i of F.
+    fn shooting(&self, i: usize, row: Vec<(u32, f32)>) -> (Vec<(u32, f32)>, f32) {
+        let area = &self.surfaces.patches.area;
+        let sum = row.iter().map(|e| e.1).sum();
+        let ai = area[i];
+        (
+            row.into_iter()
+                .map(|(j, f)| (j, f * ai / area[j as usize]))
+                .collect(),
+            sum,
+        )
     }
 
     /// Counters of every row computed so far.
@@ -61,20 +114,22 @@ impl GatheringRows for OnDemand<'_> {
     fn gathering_row(&self, i: usize) -> Vec<(u32, f32)> {
         self.row(i)
     }
+    fn gathering_rows(&self, batch: &[usize]) -> Vec<Vec<(u32, f32)>> {
+        self.rows(batch)
+    }
 }
 
 impl ShootingRows for OnDemand<'_> {
     fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32) {
-        let row = self.row(i);
-        let area = &self.surfaces.patches.area;
-        let sum = row.iter().map(|e| e.1).sum();
-        let ai = area[i];
-        (
-            row.into_iter()
-                .map(|(j, f)| (j, f * ai / area[j as usize]))
-                .collect(),
-            sum,
-        )
+        self.shooting(i, self.row(i))
+    }
+    fn shooting_rows(&self, batch: &[usize]) -> Vec<(Vec<(u32, f32)>, f32)> {
+        let rows = self.rows(batch);
+        batch
+            .iter()
+            .zip(rows)
+            .map(|(&i, r)| self.shooting(i, r))
+            .collect()
     }
 }
 

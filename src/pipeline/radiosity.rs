@@ -19,7 +19,7 @@ use crate::direct::{self, Directional, Lights, Mis};
 use crate::error::{Error, Result};
 use crate::form_factors::raycast::Surfaces;
 use crate::form_factors::rows::OnDemand;
-use crate::form_factors::{self, FormFactors};
+use crate::form_factors::{self, hemicube, FormFactors};
 use crate::gather::{self, Extras, Gathered, Gatherer};
 use crate::nee::PatchLights;
 use crate::raycast::batch::BatchCaster;
@@ -95,6 +95,7 @@ pub fn run(
         &direct.sampled,
         patch_direct,
         (&advance, &mut watch),
+        &mut log.warnings,
     )?;
     if patch_light.solution.residual >= config.tolerance && config.solver != Solver::Direct {
         log.warnings.push(format!(
@@ -288,9 +289,8 @@ fn compute_form_factors(
 ) -> FormFactors {
     let (rays, seed) = (config.rays_per_patch, config.seed);
     match (config.form_factors, gpu) {
-        (FormFactorMethod::Hemicube, _) => {
-            form_factors::hemicube::compute(s, config.hemicube_resolution, advance)
-        }
+        (FormFactorMethod::Hemicube, _) => gpu_hemicubes(s, config, advance, warnings)
+            .unwrap_or_else(|| hemicube::compute(s, config.hemicube_resolution, advance)),
         (FormFactorMethod::Raycast, Some(g)) => {
             match form_factors::raycast::compute_batched(s, g, rays, seed, advance) {
                 Ok(ff) => ff,
@@ -303,6 +303,51 @@ fn compute_form_factors(
             }
         }
         (FormFactorMethod::Raycast, None) => form_factors::raycast::compute(s, rays, seed, advance),
+    }
+}
+
+/// `device = "gpu"` with hemicubes: every row rendered on the GPU; `None`
+/// (with a warning) where there is no adapter or it fails, and the CPU
+/// renders them.
+fn gpu_hemicubes(
+    s: &Surfaces,
+    config: &BakeConfig,
+    advance: &(dyn Fn(u64) + Sync),
+    warnings: &mut Vec<String>,
+) -> Option<FormFactors> {
+    let gpu = gpu_device(s, config, warnings)?;
+    match hemicube::compute_on(s, gpu.as_ref(), config.hemicube_resolution, advance) {
+        Ok(ff) => Some(ff),
+        Err(e) => {
+            warnings.push(format!(
+                "device = \"gpu\": {e:#}; hemicubes rendered on the CPU"
+            ));
+            None
+        }
+    }
+}
+
+/// The GPU's hemicubes for `device = "gpu"` (a warning names the adapter,
+/// or why there is none, and then the CPU renders them).
+fn gpu_device(
+    s: &Surfaces,
+    config: &BakeConfig,
+    warnings: &mut Vec<String>,
+) -> Option<Box<dyn hemicube::RowBatches>> {
+    if config.device != config::Device::Gpu {
+        return None;
+    }
+    match hemicube::gpu(s.geometry, config.hemicube_resolution) {
+        Ok(g) => {
+            warnings.push(format!("hemicubes rendered on the GPU: {}", g.describe()));
+            Some(g)
+        }
+        Err(e) => {
+            warnings.push(format!(
+                "device = \"gpu\": {e:#}; hemicubes rendered on the CPU"
+            ));
+            None
+        }
     }
 }
 
@@ -378,6 +423,7 @@ fn solve_patches(
     sampled: &[bool],
     patch_direct: Vec<Vec3>,
     (advance, watch): (&(dyn Fn(u64) + Sync), &mut Snapshots),
+    warnings: &mut Vec<String>,
 ) -> Result<PatchLight> {
     let emission: Vec<Vec3> = (0..s.patches.len())
         .map(|i| {
@@ -415,7 +461,12 @@ fn solve_patches(
             (solution, ff.row_sums(), ff.stats.clone())
         }
         None => {
-            let rows = OnDemand::new(s, config);
+            let mut rows = OnDemand::new(s, config);
+            if config.form_factors == FormFactorMethod::Hemicube {
+                if let Some(gpu) = gpu_device(s, config, warnings) {
+                    rows = rows.with_gpu(gpu);
+                }
+            }
             let max_shots = iterations as u64 * s.patches.len() as u64;
             let mut observe = |p: &progressive::Partial| watch.observe(&system, p);
             let shot =
@@ -423,6 +474,11 @@ fn solve_patches(
             let mut solution = shot.solution;
             let row_sums =
                 progressive::gather_sweeps(&rows, &system, &mut solution, 2, Some(&shot.rows));
+            if let Some(e) = rows.gpu_failed() {
+                warnings.push(format!(
+                    "device = \"gpu\": {e}; the other hemicubes rendered on the CPU"
+                ));
+            }
             (solution, row_sums, rows.stats())
         }
     };

@@ -52,6 +52,12 @@ impl System<'_> {
 pub trait ShootingRows: Sync {
     /// Coefficients of shooter `i`, and Σⱼ Fᵢⱼ (the fraction of i's light that lands).
     fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32);
+    /// Several shooters' rows, in their order: one row per thread, unless
+    /// the source does better (a GPU pass of hemicubes).
+    fn shooting_rows(&self, batch: &[usize]) -> Vec<(Vec<(u32, f32)>, f32)> {
+        use rayon::prelude::*;
+        batch.par_iter().map(|&i| self.shooting_row(i)).collect()
+    }
 }
 
 /// Rows of F for gathering: `gathering_row(i)` lists (j, Fᵢⱼ), the row
@@ -60,6 +66,11 @@ pub trait ShootingRows: Sync {
 pub trait GatheringRows: Sync {
     /// Row i of F.
     fn gathering_row(&self, i: usize) -> Vec<(u32, f32)>;
+    /// Several rows, in their order (as [`ShootingRows::shooting_rows`]).
+    fn gathering_rows(&self, batch: &[usize]) -> Vec<Vec<(u32, f32)>> {
+        use rayon::prelude::*;
+        batch.par_iter().map(|&i| self.gathering_row(i)).collect()
+    }
 }
 
 /// The solved radiosity system.

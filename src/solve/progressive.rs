@@ -278,15 +278,13 @@ impl ShotRows {
             .map(|&k| (st.powers[k as usize], k))
             .collect();
         held.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let mut dropped = 0;
-        for &(_, k) in &held {
+        for (dropped, &(_, k)) in held.iter().enumerate() {
             if dropped >= held.len().div_ceil(2) && self.entries + need <= CACHE_ENTRIES {
                 break;
             }
             if let Some(r) = self.rows.remove(&k) {
                 self.entries -= r.0.len();
             }
-            dropped += 1;
         }
     }
 
@@ -333,15 +331,12 @@ pub fn solve(
         if batch.is_empty() {
             break;
         }
-        let fresh: Vec<_> = batch
-            .iter()
+        let missing: Vec<usize> = (batch.iter())
             .filter(|(i, _)| !cache.rows.contains_key(&(*i as u32)))
             .map(|&(i, _)| i)
-            .collect::<Vec<_>>()
-            .into_par_iter()
-            .map(|i| (i, rows.shooting_row(i)))
             .collect();
-        let mut fresh: HashMap<usize, _> = fresh.into_iter().collect();
+        let fresh = rows.shooting_rows(&missing);
+        let mut fresh: HashMap<usize, _> = missing.into_iter().zip(fresh).collect();
         let need = (fresh.iter())
             .filter(|(&i, _)| RowCache::pays(i, sys))
             .map(|(_, r)| r.0.len())
@@ -389,6 +384,9 @@ pub fn solve(
     }
 }
 
+/// Patches per batch of rows in [`gather_sweeps`].
+const SWEEP_CHUNK: usize = 4096;
+
 /// Gathering sweeps that complete a progressive solution: `sweeps` times,
 /// every patch gathers from its own row, L ← E + ρ (D + F L). Shooting
 /// scales a shooter's row by Aᵢ/Aⱼ (reciprocity), which is noisy for small
@@ -406,25 +404,44 @@ pub fn gather_sweeps(
     sweeps: u32,
     shot: Option<&ShotRows>,
 ) -> Vec<f32> {
-    let row_of = |j: usize| match shot.and_then(|c| c.rows.get(&(j as u32))) {
-        Some((s, _)) => (s.iter())
-            .map(|&(k, v)| (k, v * sys.area[k as usize] / sys.area[j]))
-            .collect(),
-        None => rows.gathering_row(j),
-    };
+    let cached = |j: usize| shot.and_then(|c| c.rows.get(&(j as u32)));
     let mut gathered: Vec<(Vec3, f32)> = Vec::new();
+    let all: Vec<usize> = (0..sys.len()).collect();
     for _ in 0..sweeps {
-        gathered = (0..sys.len())
-            .into_par_iter()
-            .map(|j| {
-                let row = row_of(j);
-                let h = row
-                    .iter()
-                    .map(|&(k, f)| solution.radiance[k as usize] * f)
-                    .sum::<Vec3>();
-                (sys.direct[j] + h, row.iter().map(|e| e.1).sum())
-            })
-            .collect();
+        gathered = Vec::with_capacity(sys.len());
+        // A chunk at a time, so rows not cached come in large batches.
+        for chunk in all.chunks(SWEEP_CHUNK) {
+            let missing: Vec<usize> = chunk
+                .iter()
+                .copied()
+                .filter(|&j| cached(j).is_none())
+                .collect();
+            let fresh: HashMap<usize, Vec<(u32, f32)>> = missing
+                .iter()
+                .copied()
+                .zip(rows.gathering_rows(&missing))
+                .collect();
+            let part: Vec<(Vec3, f32)> = (chunk.par_iter())
+                .map(|&j| {
+                    let converted;
+                    let row: &[(u32, f32)] = match cached(j) {
+                        Some((s, _)) => {
+                            converted = (s.iter())
+                                .map(|&(k, v)| (k, v * sys.area[k as usize] / sys.area[j]))
+                                .collect::<Vec<_>>();
+                            &converted
+                        }
+                        None => &fresh[&j],
+                    };
+                    let h = row
+                        .iter()
+                        .map(|&(k, f)| solution.radiance[k as usize] * f)
+                        .sum::<Vec3>();
+                    (sys.direct[j] + h, row.iter().map(|e| e.1).sum())
+                })
+                .collect();
+            gathered.extend(part);
+        }
         solution.irradiance = gathered.iter().map(|g| g.0).collect();
         solution.radiance = (0..sys.len())
             .map(|j| sys.emission[j] + sys.albedo[j] * solution.irradiance[j])
