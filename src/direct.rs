@@ -602,7 +602,7 @@ pub fn direct_at(
 }
 
 /// One texel's direct light, its parts apart (irradiance / π each).
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct TexelDirect {
     /// Baked punctual lights and the emitters' light samples.
     pub light: Vec3,
@@ -834,14 +834,55 @@ pub fn texels(
     advance: &(dyn Fn(u64) + Sync),
 ) -> Direct {
     let n = s.texels.len();
+    let settings = TexelSettings {
+        samples,
+        hemisphere,
+        mis,
+        supersample,
+        seed,
+    };
+    assemble(texel_range(s, lights, &settings, 0..n, advance))
+}
+
+/// The settings of [`texels`], for [`texel_range`].
+#[derive(Clone, Copy, Debug)]
+pub struct TexelSettings {
+    /// Light samples per texel.
+    pub samples: u32,
+    /// Hemisphere rays per texel.
+    pub hemisphere: u32,
+    /// The emitters' MIS weights.
+    pub mis: Mis,
+    /// Punctual lights at s × s points (s > 1).
+    pub supersample: u32,
+    /// The bake's seed.
+    pub seed: u64,
+}
+
+/// [`texels`] over the texels of `range` only, in order (each texel's
+/// light depends on its index alone, so a range computed on its own is
+/// that range of the whole: `radbake shard`).
+pub fn texel_range(
+    s: &Surfaces,
+    lights: &Lights,
+    set: &TexelSettings,
+    range: std::ops::Range<usize>,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Vec<TexelDirect> {
+    let (samples, hemisphere, mis, supersample, seed) = (
+        set.samples,
+        set.hemisphere,
+        set.mis,
+        set.supersample,
+        set.seed,
+    );
     let chunk = 256;
-    type Part = (Vec<TexelDirect>, u64);
-    let out: Vec<Part> = (0..n.div_ceil(chunk))
+    let (lo, hi) = (range.start, range.end);
+    let out: Vec<Vec<TexelDirect>> = (0..(hi - lo).div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
-            let range = c * chunk..((c + 1) * chunk).min(n);
+            let range = lo + c * chunk..(lo + (c + 1) * chunk).min(hi);
             let mut vals = Vec::with_capacity(range.len());
-            let mut rays = 0;
             for t in range {
                 if s.burial.enclosed(t) {
                     // Inside a solid (see `burial`): nothing arrives.
@@ -879,13 +920,19 @@ pub fn texels(
                 }
                 d.light += pieces.light;
                 d.mixed += pieces.mixed;
-                rays += d.rays + pieces.rays;
+                d.rays += pieces.rays;
                 vals.push(d);
             }
             advance(vals.len() as u64);
-            (vals, rays)
+            vals
         })
         .collect();
+    out.into_iter().flatten().collect()
+}
+
+/// The texels' direct light, in texel order, as [`Direct`].
+pub fn assemble(texels: Vec<TexelDirect>) -> Direct {
+    let n = texels.len();
     let mut d = Direct {
         light: Vec::with_capacity(n),
         hemisphere: Vec::with_capacity(n),
@@ -893,14 +940,12 @@ pub fn texels(
         directional: Vec::with_capacity(n),
         rays: 0,
     };
-    for (v, r) in out {
-        for t in v {
-            d.light.push(t.light);
-            d.hemisphere.push(t.hemisphere);
-            d.mixed.push(t.mixed);
-            d.directional.push(t.directional);
-        }
-        d.rays += r;
+    for t in texels {
+        d.light.push(t.light);
+        d.hemisphere.push(t.hemisphere);
+        d.mixed.push(t.mixed);
+        d.directional.push(t.directional);
+        d.rays += t.rays;
     }
     d
 }

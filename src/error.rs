@@ -65,6 +65,19 @@ pub enum Error {
         /// The encoder's message.
         message: String,
     },
+    /// A shard's file (`radbake shard`) is missing, corrupt or not this
+    /// plan's.
+    #[error("shard {path}: {message}")]
+    Shard {
+        /// The slice or merge file.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// Not a failure: a shard job wrote its part and stops there
+    /// ([`crate::shard::Sharding::checkpoint`]).
+    #[error("this shard's part is written")]
+    ShardDone,
 }
 
 impl Error {
@@ -74,6 +87,7 @@ impl Error {
         matches!(
             self,
             Error::Parse { .. }
+                | Error::Shard { .. }
                 | Error::Invalid { .. }
                 | Error::Empty { .. }
                 | Error::Config { .. }

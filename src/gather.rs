@@ -207,8 +207,8 @@ impl Default for Extras {
 }
 
 /// One texel's gather.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct TexelGather {
+#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct TexelGather {
     mean: Vec3,
     valid: bool,
     variance: f32,
@@ -547,13 +547,23 @@ impl<'a> Gatherer<'a> {
 
     /// Every texel's gather, its rays cast on the CPU.
     pub fn gather_cpu(&self, advance: &(dyn Fn(u64) + Sync)) -> Gathered {
+        self.assemble(self.gather_range(0..self.s.texels.len(), advance))
+    }
+
+    /// The gathers of the texels of `range`, in order (each depends on its
+    /// texel's index alone: `radbake shard` computes ranges apart).
+    pub fn gather_range(
+        &self,
+        range: std::ops::Range<usize>,
+        advance: &(dyn Fn(u64) + Sync),
+    ) -> Vec<TexelGather> {
         let s = self.s;
-        let n = s.texels.len();
         let chunk = 256;
-        let parts: Vec<Vec<TexelGather>> = (0..n.div_ceil(chunk))
+        let (lo, hi) = (range.start, range.end);
+        let parts: Vec<Vec<TexelGather>> = (0..(hi - lo).div_ceil(chunk))
             .into_par_iter()
             .map(|c| {
-                let range = c * chunk..((c + 1) * chunk).min(n);
+                let range = lo + c * chunk..(lo + (c + 1) * chunk).min(hi);
                 let out: Vec<TexelGather> = range
                     .map(|t| self.texel(t, |_, o, d| s.rays.closest_hit(o, d, f32::INFINITY)))
                     .collect();
@@ -561,7 +571,7 @@ impl<'a> Gatherer<'a> {
                 out
             })
             .collect();
-        self.assemble(parts.into_iter().flatten())
+        parts.into_iter().flatten().collect()
     }
 
     /// The texels' gathers, in texel order, as [`Gathered`].
@@ -602,7 +612,7 @@ impl<'a> Gatherer<'a> {
         Ok(self.assemble(texels))
     }
 
-    fn assemble(&self, texels: impl IntoIterator<Item = TexelGather>) -> Gathered {
+    pub fn assemble(&self, texels: impl IntoIterator<Item = TexelGather>) -> Gathered {
         let n = self.s.texels.len();
         let mut gathered = Gathered {
             indirect: Vec::with_capacity(n),

@@ -58,6 +58,7 @@ pub mod scene;
 pub mod sdf;
 pub mod seams;
 pub mod shadowmask;
+pub mod shard;
 pub mod sky;
 pub mod solve;
 pub mod texels;
@@ -65,5 +66,5 @@ pub mod trace;
 
 pub use config::BakeConfig;
 pub use error::{Error, Result};
-pub use pipeline::{bake, Bake};
+pub use pipeline::{bake, bake_with, Bake};
 pub use progress::{Progress, Silent, Snapshot};

@@ -35,6 +35,9 @@ enum Command {
     Serve(cli::serve::ServeArgs),
     /// Bake the scene's signed distance field (a KTX2 3D texture, metres).
     Sdf(cli::sdf::SdfArgs),
+    /// Split a bake into jobs for a batch scheduler (Slurm, Kubernetes, local) and merge them.
+    #[command(subcommand)]
+    Shard(cli::shard::ShardCommand),
 }
 
 fn main() -> ExitCode {
@@ -66,6 +69,7 @@ fn main() -> ExitCode {
         Command::Measure(args) => cli::measure::run(args),
         Command::Sdf(args) => cli::sdf::run(args),
         Command::Serve(args) => cli::serve::run(args),
+        Command::Shard(cmd) => cli::shard::run(cmd),
         #[cfg(feature = "preview")]
         Command::Preview(args) => cli::preview::run(args),
     });

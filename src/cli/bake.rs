@@ -232,7 +232,7 @@ pub enum ProgressMode {
 
 impl BakeArgs {
     /// Defaults < preset < config file < flags.
-    fn config(&self) -> anyhow::Result<BakeConfig> {
+    pub(super) fn config(&self) -> anyhow::Result<BakeConfig> {
         let base = BakeConfig::preset(self.preset.unwrap_or(Preset::Medium));
         let mut c = match &self.config {
             Some(path) => {
@@ -376,7 +376,7 @@ pub fn run(args: &BakeArgs) -> Outcome {
         let (_, error) = &*w.outcome.lock().expect("snapshot lock");
         report.warnings.extend(error.clone());
     }
-    let written = write_outputs(args, &stem, &bake, &mut report)?;
+    let written = write_outputs(&args.out, &stem, &bake, &mut report)?;
     if let Some(w) = &snapshots {
         // The final .baked.glb supersedes the snapshots.
         let _ = std::fs::remove_file(&w.path);
@@ -460,8 +460,8 @@ fn up_to_date(args: &BakeArgs, stem: &str, hash: &str) -> bool {
 
 /// Writes every output (each atomically) and, last, `report.json` with the
 /// write stage's time; returns the files written.
-fn write_outputs(
-    args: &BakeArgs,
+pub(super) fn write_outputs(
+    out: &std::path::Path,
     stem: &str,
     bake: &radbake::Bake,
     report: &mut radbake::report::Report,
@@ -469,23 +469,28 @@ fn write_outputs(
     use radbake::output;
     let t = Instant::now();
     let lightmaps = &bake.maps.lightmaps;
-    let mut written = output::write_lightmaps(&args.out, lightmaps).map_err(lib_err)?;
-    written.extend(output::write_extra_maps(&args.out, bake).map_err(lib_err)?);
+    let mut written = output::write_lightmaps(out, lightmaps).map_err(lib_err)?;
+    written.extend(output::write_extra_maps(out, bake).map_err(lib_err)?);
     if bake.config.debug_maps {
-        written.extend(output::write_debug_maps(&args.out, bake).map_err(lib_err)?);
+        written.extend(output::write_debug_maps(out, bake).map_err(lib_err)?);
     }
-    written.extend(output::write_engine_outputs(&args.out, stem, bake).map_err(lib_err)?);
+    written.extend(output::write_engine_outputs(out, stem, bake).map_err(lib_err)?);
     report.stages.push(StageTime {
         stage: "write".into(),
         seconds: t.elapsed().as_secs_f64(),
     });
-    written.push(output::write_report(&args.out, report).map_err(lib_err)?);
+    written.push(output::write_report(out, report).map_err(lib_err)?);
     Ok(written)
 }
 
 /// Stage times and counters (`--verbose`), the stats table (`--stats`),
 /// warnings and the one-line summary (unless `--quiet`).
-fn print_summary(args: &BakeArgs, report: &radbake::report::Report, start: Instant, files: usize) {
+pub(super) fn print_summary(
+    args: &BakeArgs,
+    report: &radbake::report::Report,
+    start: Instant,
+    files: usize,
+) {
     if args.verbose {
         for s in &report.stages {
             eprintln!("{:>13}: {:8.3} s", s.stage, s.seconds);

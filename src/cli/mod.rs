@@ -13,6 +13,7 @@ pub mod progress;
 pub mod render;
 pub mod sdf;
 pub mod serve;
+pub mod shard;
 
 use clap::Args;
 

@@ -19,7 +19,7 @@ pub mod rows;
 use nalgebra_sparse::CsrMatrix;
 
 /// Counters of a form-factor computation.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct FormFactorStats {
     /// Rays cast.
     pub rays: u64,

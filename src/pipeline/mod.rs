@@ -84,6 +84,23 @@ pub fn bake<'s>(
     config: &BakeConfig,
     progress: &dyn Progress,
 ) -> Result<Bake<'s>> {
+    bake_with(scene, config, progress, &crate::shard::Sharding::whole())
+}
+
+/// [`bake`] as one job of a sharded bake ([`crate::shard`]): the sliced
+/// stages compute, write or read their slices as `shard` says, and a job
+/// whose part is written stops there with
+/// [`Error::ShardDone`](crate::Error::ShardDone).
+///
+/// # Errors
+/// As [`bake`], and [`Error::Shard`](crate::Error::Shard) for a slice
+/// file that is missing or bad.
+pub fn bake_with<'s>(
+    scene: &'s Scene,
+    config: &BakeConfig,
+    progress: &dyn Progress,
+    shard: &crate::shard::Sharding,
+) -> Result<Bake<'s>> {
     config.validate()?;
     config.light_modes.check(scene)?;
     let masked = crate::shadowmask::lights(&scene.lights).len();
@@ -142,7 +159,9 @@ pub fn bake<'s>(
         rays: &rays,
         burial: &burial,
     };
-    let light = transport::run(&surfaces, &atlas, config, &sky, &mut log)?;
+    let light = transport::run(&surfaces, &atlas, config, &sky, &mut log, shard)?;
+    // A phase-2 job stops here even where nothing was sliced (no gather).
+    shard.checkpoint(2, false)?;
 
     log.begin("lightmaps", 0);
     let maps = maps::build(&surfaces, atlas.page_count, &light, config);

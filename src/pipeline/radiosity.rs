@@ -24,6 +24,7 @@ use crate::gather::{self, Extras, Gathered, Gatherer};
 use crate::nee::PatchLights;
 use crate::raycast::batch::BatchCaster;
 use crate::raycast::device;
+use crate::shard::Sharding;
 use crate::solve::{self, progressive, System};
 use crate::{denoise, lightmap};
 use glam::Vec3;
@@ -56,6 +57,7 @@ pub fn run(
     config: &BakeConfig,
     sky: &crate::sky::Sky,
     log: &mut Log,
+    shard: &Sharding,
 ) -> Result<TexelLight> {
     check_direct_solver(config, s.patches.len())?;
     let progress = log.progress();
@@ -70,13 +72,23 @@ pub fn run(
         s.patches.len() as u64
     };
     log.begin("form_factors", total);
-    let form_factors = (!progressive)
-        .then(|| compute_form_factors(s, config, gpu.as_deref(), &advance, &mut log.warnings));
+    let form_factors = match (progressive, shard.is_whole()) {
+        (true, _) => None,
+        (false, true) => Some(compute_form_factors(
+            s,
+            config,
+            gpu.as_deref(),
+            &advance,
+            &mut log.warnings,
+        )),
+        (false, false) => Some(sharded_form_factors(s, config, shard, &advance)?),
+    };
     log.end("form_factors");
 
     log.begin("direct", s.texels.len() as u64);
-    let mut direct = direct_light(s, config, sky, &advance);
+    let mut direct = direct_light(s, config, sky, &advance, shard)?;
     log.end("direct");
+    shard.checkpoint(1, false)?;
 
     let max_shots = config.max_iterations as u64 * s.patches.len() as u64;
     let total = if progressive {
@@ -88,15 +100,17 @@ pub fn run(
     let patch_direct = std::mem::take(&mut direct.patch);
     let dilate = 2 * config.padding;
     let mut watch = Snapshots::new(progress, s, atlas, || direct.parts.baked(), dilate);
-    let patch_light = solve_patches(
-        s,
-        config,
-        form_factors,
-        &direct.sampled,
-        patch_direct,
-        (&advance, &mut watch),
-        &mut log.warnings,
-    )?;
+    let patch_light = solved(shard, form_factors, patch_direct, |ff, patch_direct| {
+        solve_patches(
+            s,
+            config,
+            ff,
+            &direct.sampled,
+            patch_direct,
+            (&advance, &mut watch),
+            &mut log.warnings,
+        )
+    })?;
     if patch_light.solution.residual >= config.tolerance && config.solver != Solver::Direct {
         log.warnings.push(format!(
             "the solver stopped at its limit (max_iterations = {}) with residual {:.2e} above tolerance {:.2e}",
@@ -104,6 +118,7 @@ pub fn run(
         ));
     }
     log.end("solve");
+    shard.checkpoint(1, true)?;
 
     let indirect: Vec<Vec3> = patch_light
         .solution
@@ -173,8 +188,24 @@ pub fn run(
         Some(l) => gatherer.with_lights(l),
         None => gatherer,
     };
-    let g = final_gather(&gatherer, gpu.as_deref(), &advance, &mut log.warnings);
+    let g = if shard.is_whole() {
+        final_gather(&gatherer, gpu.as_deref(), &advance, &mut log.warnings)
+    } else {
+        // Slices of equal cost: a valid texel casts its rays, an invalid
+        // one stops after a few.
+        let cost: Vec<f64> = (pre.iter())
+            .map(|&v| if v { config.final_gather as f64 } else { 1.0 })
+            .collect();
+        let texels = shard.items(
+            "gather",
+            s.texels.len(),
+            |count| crate::shard::balanced(&cost, count),
+            |range| gatherer.gather_range(range, &advance),
+        )?;
+        gatherer.assemble(texels)
+    };
     drop(gatherer);
+    shard.checkpoint(2, false)?;
     drop(lights);
     log.end("final_gather");
     rays.gather = g.rays;
@@ -362,7 +393,8 @@ fn direct_light(
     config: &BakeConfig,
     sky: &crate::sky::Sky,
     advance: &(dyn Fn(u64) + Sync),
-) -> DirectLight {
+    shard: &Sharding,
+) -> Result<DirectLight> {
     let sampled = direct::sampled_materials(s.scene, s.geometry, config.emitters);
     let mut lights = Lights::new(s.scene, s.geometry, &sampled, sky.clone());
     lights.sky_samples = config.sky_samples;
@@ -380,16 +412,21 @@ fn direct_light(
     } else {
         config.direct_samples
     };
-    let parts = direct::texels(
-        s,
-        &lights,
-        config.direct_samples,
+    let settings = direct::TexelSettings {
+        samples: config.direct_samples,
         hemisphere,
         mis,
-        config.supersample,
-        config.seed,
-        advance,
-    );
+        supersample: config.supersample,
+        seed: config.seed,
+    };
+    let n = s.texels.len();
+    let texels = shard.items(
+        "direct",
+        n,
+        |count| crate::shard::even(n, count),
+        |range| direct::texel_range(s, &lights, &settings, range, advance),
+    )?;
+    let parts = direct::assemble(texels);
     let texel = parts.total();
     let patch = (0..s.patches.len())
         .map(|i| {
@@ -402,7 +439,7 @@ fn direct_light(
             sum / s.patches.area[i]
         })
         .collect();
-    DirectLight {
+    Ok(DirectLight {
         sampled,
         lights,
         mis,
@@ -410,7 +447,94 @@ fn direct_light(
         parts,
         texel,
         patch,
+    })
+}
+
+/// The form-factor rows of a sharded bake ([`crate::shard`]): a phase-1
+/// job casts its slice of patches' rows on the CPU; later jobs read them.
+fn sharded_form_factors(
+    s: &Surfaces,
+    config: &BakeConfig,
+    shard: &Sharding,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Result<FormFactors> {
+    use rayon::prelude::*;
+    let n = s.patches.len();
+    let cube = hemicube::Hemicube::new(config.hemicube_resolution);
+    let row = |i: usize| match config.form_factors {
+        FormFactorMethod::Hemicube => hemicube::row(s, &cube, i),
+        FormFactorMethod::Raycast => {
+            form_factors::raycast::row(s, i, config.rays_per_patch, config.seed)
+        }
+    };
+    let rows = shard.items(
+        "rows",
+        n,
+        |count| crate::shard::even(n, count),
+        |range| {
+            (range.into_par_iter())
+                .map(|i| {
+                    let r = row(i);
+                    advance(1);
+                    r
+                })
+                .collect()
+        },
+    )?;
+    let mut stats = form_factors::FormFactorStats::default();
+    let rows = (rows.into_iter())
+        .map(|(r, st)| {
+            stats.add(&st);
+            r
+        })
+        .collect();
+    Ok(FormFactors::from_rows(n, rows, stats))
+}
+
+/// What the solve leaves for later shards: the solution, Σⱼ Fᵢⱼ and the
+/// counters (the matrix itself is read again from the rows' slices).
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Solved {
+    solution: solve::Solution,
+    row_sums: Vec<f32>,
+    stats: form_factors::FormFactorStats,
+}
+
+/// The solve, or in a sharded bake its product: computed by merge 1 (and
+/// written), read by later jobs ([`Sharding::once`]).
+fn solved(
+    shard: &Sharding,
+    form_factors: Option<FormFactors>,
+    patch_direct: Vec<Vec3>,
+    solve: impl FnOnce(Option<FormFactors>, Vec<Vec3>) -> Result<PatchLight>,
+) -> Result<PatchLight> {
+    if shard.is_whole() {
+        return solve(form_factors, patch_direct);
     }
+    let mut inputs = Some((form_factors, patch_direct));
+    let mut kept = None;
+    let product = shard.once("solve", 1, || {
+        let (ff, direct) = inputs.take().ok_or(Error::ShardDone)?;
+        let p = solve(ff, direct)?;
+        let out = Solved {
+            solution: p.solution.clone(),
+            row_sums: p.row_sums.clone(),
+            stats: p.stats.clone(),
+        };
+        kept = Some(p);
+        Ok(out)
+    })?;
+    if let Some(p) = kept {
+        return Ok(p);
+    }
+    let (form_factors, patch_direct) = inputs.ok_or(Error::ShardDone)?;
+    Ok(PatchLight {
+        form_factors,
+        stats: product.stats,
+        row_sums: product.row_sums,
+        direct: patch_direct,
+        solution: product.solution,
+    })
 }
 
 /// The patch system L = E′ + ρ H, H = D + F L, solved by `config.solver`.

@@ -26,9 +26,10 @@ pub fn run(
     config: &BakeConfig,
     sky: &Sky,
     log: &mut Log,
+    shard: &crate::shard::Sharding,
 ) -> Result<TexelLight> {
     match config.method {
-        Method::Radiosity => radiosity::run(s, atlas, config, sky, log),
+        Method::Radiosity => radiosity::run(s, atlas, config, sky, log, shard),
         Method::Pathtrace => Ok(pathtrace(s, config, sky, log)),
         Method::Photon => photon(s, config, log),
     }

@@ -74,7 +74,7 @@ pub trait GatheringRows: Sync {
 }
 
 /// The solved radiosity system.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Solution {
     /// Outgoing radiance Lᵢ per patch (W·sr⁻¹·m⁻²).
     pub radiance: Vec<Vec3>,
