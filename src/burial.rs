@@ -52,7 +52,7 @@ const LIFT: f32 = 0.01;
 /// One burial plane: the line where a surface crossing the texel meets
 /// it. A point `x` of the texel's surface is on the texel's side when
 /// `n · x ≤ k`. `n` lies in the texel's plane.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Clip {
     /// In-plane unit normal, pointing into the far side.
     pub n: Vec3,
@@ -136,7 +136,7 @@ impl<'a> Side<'a> {
 }
 
 /// Counters of the stage.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BurialStats {
     /// Rays cast.
     pub rays: u64,
@@ -154,7 +154,7 @@ pub struct BurialStats {
 
 /// Every texel's burial planes and exposed fraction. [`Burial::open`] (no
 /// planes anywhere) is the stage switched off.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Burial {
     /// Texel `t`'s planes are `planes[start[t]..start[t + 1]]`; empty when
     /// no texel has any.

@@ -25,9 +25,10 @@
 //! payload) and the items, postcard-encoded and zstd-compressed; it is
 //! written atomically, so a job killed and run again leaves the same bytes.
 //!
-//! Every job reads the work folder's copy of the scene and settings and
-//! computes the cheap stages before the sliced ones again (import, atlas,
-//! texels, BVH, burial, patches): see `plan` for what that costs.
+//! `shard plan` computes the stages before the sliced ones once and writes
+//! the costly ones ([`Sharding::prepared`]: texels, burial planes); every
+//! job imports the work folder's copy of the scene, unwraps it and builds
+//! its BVH and patches again (cheaper than reading them), and reads the rest.
 
 use crate::error::{Error, Result};
 use serde::de::DeserializeOwned;
@@ -40,6 +41,9 @@ use std::path::{Path, PathBuf};
 pub enum Job {
     /// The whole bake in one process (`radbake bake`).
     Whole,
+    /// `shard plan`: the stages before the sliced ones (texels, burial),
+    /// computed once and written for every job to read.
+    Prepare,
     /// Job `index` of `count` of phase `phase` (1 or 2).
     Run {
         /// 1: rows and direct light; 2: the final gather.
@@ -174,6 +178,32 @@ impl Sharding {
         }
     }
 
+    /// A product of the stages before the sliced ones: computed (and
+    /// written) by `shard plan`, read by every job; a whole bake just
+    /// computes it. The job that prepares stops after the last of them
+    /// ([`Sharding::checkpoint`] with phase 0).
+    ///
+    /// # Errors
+    /// As [`Sharding::items`].
+    pub fn prepared<T>(&self, stage: &str, compute: impl FnOnce() -> T) -> Result<T>
+    where
+        T: Serialize + DeserializeOwned,
+    {
+        let path = self.merged_path(stage);
+        match self.job {
+            Job::Whole => Ok(compute()),
+            Job::Prepare => {
+                let v = compute();
+                self.write(&path, stage, 1, 0..1, std::slice::from_ref(&v))?;
+                Ok(v)
+            }
+            _ => {
+                let mut v: Vec<T> = self.read(&path, stage, 1, 0..1)?;
+                v.pop().ok_or_else(|| shard_error(&path, "empty".into()))
+            }
+        }
+    }
+
     /// A merge's product: computed by merge `phase` (and written), read
     /// by every later job; a whole bake just computes it.
     ///
@@ -205,6 +235,7 @@ impl Sharding {
     /// [`Error::ShardDone`] when this job is done (not a failure).
     pub fn checkpoint(&self, phase: u8, merge: bool) -> Result<()> {
         let done = match self.job {
+            Job::Prepare => phase == 0,
             Job::Run { phase: p, .. } => !merge && p == phase,
             Job::Merge { phase: p } => merge && p == phase,
             Job::Whole => false,

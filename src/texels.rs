@@ -20,7 +20,7 @@ pub const EMPTY_ENTRY: u64 = u64::MAX;
 /// The part of a texel one triangle covers: where a texel spans a curve or
 /// a fold, its pieces face different ways (and its world centroid lies off
 /// the surface), so light that depends on the normal is evaluated per piece.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Piece {
     /// World triangle.
     pub tri: u32,
@@ -34,7 +34,7 @@ pub struct Piece {
 }
 
 /// Covered lightmap texels (struct of arrays, indexed by texel id).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Texels {
     /// Atlas page.
     pub page: Vec<u32>,

@@ -214,6 +214,8 @@ fn plan(a: &PlanArgs) -> Outcome {
     });
     let text = serde_json::to_vec_pretty(&plan).unwrap_or_default();
     radbake::output::write_bytes_atomic(&dir.join("shards/plan.json"), &text).map_err(lib_err)?;
+    // The stages before the sliced ones, once, for every job to read.
+    job(&dir, |_| Job::Prepare)?;
     if !args.quiet {
         eprintln!(
             "planned {} × 2 jobs + 2 merges in {} ({:.2} s); run them with `radbake shard local {}` or print them for `sbatch` (`shard slurm`) or `kubectl` (`shard k8s`)",
@@ -361,7 +363,9 @@ fn job(dir: &Path, job: impl FnOnce(u32) -> Job) -> Outcome {
         .unwrap_or_else(|| "scene".into());
     match radbake::bake_with(&scene, &config, &radbake::Silent, &sharding) {
         Err(radbake::Error::ShardDone) => {
-            eprintln!("{job:?} done in {:.2} s", t.elapsed().as_secs_f64());
+            if job != Job::Prepare {
+                eprintln!("{job:?} done in {:.2} s", t.elapsed().as_secs_f64());
+            }
             Ok(())
         }
         Err(e) => {

@@ -133,14 +133,17 @@ pub fn bake_with<'s>(
 
     log.begin("texels", 0);
     let geometry = Geometry::new(scene, &atlas);
-    let texels = texels::rasterize(scene, &atlas, &geometry);
+    let texels = shard.prepared("texels", || texels::rasterize(scene, &atlas, &geometry))?;
     log.end("texels");
 
     log.begin("bvh", 0);
     let rays = RayCaster::new(scene, &geometry);
     log.end("bvh");
 
-    let burial = burial_planes(scene, &geometry, &texels, &rays, config, &mut log);
+    let burial = shard.prepared("burial", || {
+        burial_planes(scene, &geometry, &texels, &rays, config, &mut log)
+    })?;
+    shard.checkpoint(0, false)?;
 
     log.begin("patches", 0);
     let texel_area: Vec<f32> = scene
