@@ -68,12 +68,15 @@ fn run_plan(work: &Path, shards: u32, order: &dyn Fn(u32) -> Vec<u32>) {
     }
 }
 
-/// The Cornell box (with its probes) and the sky-lit plate scene, in 1, 3
-/// and 4 shards, jobs completing in order, in reverse and interleaved: the
+/// A scene, extra bake options, shards, and the order its jobs run in.
+type Case<'a> = (&'a str, &'a [&'a str], u32, &'a dyn Fn(u32) -> Vec<u32>);
+
+/// The Cornell box (with its probes) in 1, 3 and 4 shards, with ray-cast
+/// and hemicube form factors, jobs completing in order, in reverse and interleaved: the
 /// outputs are those of `radbake bake`, byte for byte.
 #[test]
 fn sharded_bakes_are_byte_identical() {
-    let cases: [(&str, &[&str], u32, &dyn Fn(u32) -> Vec<u32>); 3] = [
+    let cases: [Case; 3] = [
         ("cornell_box.gltf", &[], 3, &|n| (0..n).rev().collect()),
         ("cornell_box.gltf", &["--texels-per-meter", "30"], 4, &|n| {
             (0..n).step_by(2).chain((1..n).step_by(2)).collect()
