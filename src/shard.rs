@@ -6,6 +6,7 @@
 //! the other slices from the files earlier jobs wrote:
 //!
 //! ```text
+//! plan               the texels and burial planes, once (prepared)
 //! phase 1 (N jobs)   form-factor rows of a slice of patches, direct light of a slice of texels
 //! merge 1 (1 job)    every phase-1 slice read back; the solve
 //! phase 2 (N jobs)   the final gather of a slice of texels (sliced by cost)

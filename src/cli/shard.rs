@@ -157,6 +157,15 @@ fn plan(a: &PlanArgs) -> Outcome {
     let dir = absolute(&args.out)?;
     let io = |p: &Path, e: std::io::Error| (3, format!("{}: {e}", p.display()));
     std::fs::create_dir_all(dir.join("shards")).map_err(|e| io(&dir, e))?;
+    // A new plan: slices of an earlier one must not be read by mistake.
+    for entry in std::fs::read_dir(dir.join("shards"))
+        .map_err(|e| io(&dir, e))?
+        .flatten()
+    {
+        if entry.path().extension().is_some_and(|e| e == "bin") {
+            std::fs::remove_file(entry.path()).map_err(|e| io(&entry.path(), e))?;
+        }
+    }
     // The scene's files, byte for byte, so every job imports the same scene.
     let name = args
         .scene

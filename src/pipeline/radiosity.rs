@@ -420,10 +420,14 @@ fn direct_light(
         seed: config.seed,
     };
     let n = s.texels.len();
+    // Slices of equal cost: a texel enclosed in a solid casts nothing.
+    let cost: Vec<f64> = (0..n)
+        .map(|t| if s.burial.enclosed(t) { 0.01 } else { 1.0 })
+        .collect();
     let texels = shard.items(
         "direct",
         n,
-        |count| crate::shard::even(n, count),
+        |count| crate::shard::balanced(&cost, count),
         |range| direct::texel_range(s, &lights, &settings, range, advance),
     )?;
     let parts = direct::assemble(texels);
@@ -467,10 +471,14 @@ fn sharded_form_factors(
             form_factors::raycast::row(s, i, config.rays_per_patch, config.seed)
         }
     };
+    // Slices of equal cost: a buried patch casts nothing.
+    let cost: Vec<f64> = (0..n)
+        .map(|i| if s.patch_buried(i) { 0.01 } else { 1.0 })
+        .collect();
     let rows = shard.items(
         "rows",
         n,
-        |count| crate::shard::even(n, count),
+        |count| crate::shard::balanced(&cost, count),
         |range| {
             (range.into_par_iter())
                 .map(|i| {
