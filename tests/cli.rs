@@ -675,3 +675,13 @@ fn serve_reports_a_taken_port() {
     let r = radbake(&["serve", dir.join("nope").to_str().unwrap()]);
     assert_eq!(r.code, 1, "{}", r.stderr);
 }
+
+/// `preview --watch` on a folder that does not exist says so at once (no
+/// wait for a bake that cannot write there).
+#[cfg(feature = "preview")]
+#[test]
+fn watch_refuses_a_missing_folder() {
+    let r = radbake(&["preview", "--watch", "/nonexistent/radbake-watch"]);
+    assert_ne!(r.code, 0);
+    assert!(r.stderr.contains("no such folder"), "{}", r.stderr);
+}

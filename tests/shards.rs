@@ -201,6 +201,18 @@ fn bad_slices_are_named_and_jobs_rerun_identically() {
         "gpu",
     ]);
     assert_eq!(out.status.code(), Some(1));
+    // A `bake` option a sharded bake would ignore is refused, not ignored.
+    let out = radbake(&[
+        "shard",
+        "plan",
+        s(&scene),
+        "--out",
+        s(&dir.join("t")),
+        "--timeout",
+        "5",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--timeout"));
 }
 
 /// The scheduler adapters: a Slurm script with a job array per phase and

@@ -150,6 +150,17 @@ fn plan(a: &PlanArgs) -> Outcome {
             format!("--shards {}: must be between 1 and 10000", a.shards),
         ));
     }
+    for (set, flag) in [
+        (args.snapshot_every.is_some(), "--snapshot-every"),
+        (args.timeout.is_some(), "--timeout"),
+    ] {
+        if set {
+            return Err((
+                2,
+                format!("{flag} is a `radbake bake` option; a sharded bake does not use it"),
+            ));
+        }
+    }
     let mut config = args
         .config()
         .map_err(|e| (classify(&e), format!("{e:#}")))?;

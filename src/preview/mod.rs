@@ -128,6 +128,18 @@ pub fn run(opts: &Options) -> Result<()> {
 /// `--watch`: the first file to show, waiting (politely, every 250 ms)
 /// until a bake has written one.
 fn first_file(w: &mut watch::Watch) -> Result<std::path::PathBuf> {
+    let target = w.target();
+    let folder = if target.extension().is_some() {
+        target.parent().unwrap_or(std::path::Path::new("."))
+    } else {
+        target
+    };
+    if !folder.is_dir() {
+        bail!(
+            "--watch {}: no such folder (start the bake first, or give its --out folder)",
+            folder.display()
+        );
+    }
     let mut told = false;
     loop {
         if let Some(path) = w.changed() {

@@ -31,6 +31,11 @@ impl Watch {
         }
     }
 
+    /// What is watched.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
     /// The files that count, present or not.
     fn candidates(&self) -> Vec<PathBuf> {
         if self.target.is_dir() {
