@@ -70,3 +70,27 @@ pub fn describe(adapter: &wgpu::Adapter) -> String {
     let info = adapter.get_info();
     format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
 }
+
+/// A single-sample 2D texture of `size` to render into.
+pub fn render_target(
+    device: &wgpu::Device,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}

@@ -320,11 +320,7 @@ fn cornell_box_sane() {
 fn deterministic_across_thread_counts() {
     let scene = load(&scene_path("cornell_box.gltf"));
     let run = |threads| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        on_threads(threads, || {
             let b = radbake::bake(&scene, &BakeConfig::default(), &Silent).unwrap();
             let probes = b.probes.as_ref().expect("probes on by default");
             (

@@ -50,6 +50,21 @@ fn assert_same_outputs(reference: &Path, work: &Path) {
     assert!(compared >= 8, "only {compared} files compared");
 }
 
+/// `radbake shard plan SCENE --out WORK --shards N -q`.
+fn plan(scene: &Path, work: &Path, shards: u32) {
+    let n = shards.to_string();
+    ok(&[
+        "shard",
+        "plan",
+        s(scene),
+        "--out",
+        s(work),
+        "--shards",
+        &n,
+        "-q",
+    ]);
+}
+
 /// Runs the plan in `work` job by job, each phase's jobs in `order`.
 fn run_plan(work: &Path, shards: u32, order: &dyn Fn(u32) -> Vec<u32>) {
     for phase in ["1", "2"] {
@@ -120,16 +135,7 @@ fn shard_local_runs_the_plan() {
     let (reference, work) = (dir.join("bake"), dir.join("work"));
     let scene = scene_path("cornell_box.gltf");
     ok(&["bake", s(&scene), "--out", s(&reference), "-q"]);
-    ok(&[
-        "shard",
-        "plan",
-        s(&scene),
-        "--out",
-        s(&work),
-        "--shards",
-        "2",
-        "-q",
-    ]);
+    plan(&scene, &work, 2);
     let out = ok(&["shard", "local", s(&work), "--jobs", "2"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("phase2: 2 job(s)"), "{err}");
@@ -144,16 +150,7 @@ fn bad_slices_are_named_and_jobs_rerun_identically() {
     let dir = temp_dir("shards-bad");
     let work = dir.join("work");
     let scene = scene_path("cornell_box.gltf");
-    ok(&[
-        "shard",
-        "plan",
-        s(&scene),
-        "--out",
-        s(&work),
-        "--shards",
-        "2",
-        "-q",
-    ]);
+    plan(&scene, &work, 2);
     for i in ["0", "1"] {
         ok(&["shard", "run", s(&work), "--phase", "1", "--index", i]);
     }
@@ -223,16 +220,7 @@ fn scheduler_adapters_follow_the_plan() {
     let dir = temp_dir("shards-sched");
     let work = dir.join("work");
     let scene = scene_path("cornell_box.gltf");
-    ok(&[
-        "shard",
-        "plan",
-        s(&scene),
-        "--out",
-        s(&work),
-        "--shards",
-        "5",
-        "-q",
-    ]);
+    plan(&scene, &work, 5);
     let slurm = String::from_utf8(ok(&["shard", "slurm", s(&work)]).stdout).unwrap();
     assert_eq!(slurm.matches("--array=0-4").count(), 2, "{slurm}");
     for after in ["afterok:$phase1", "afterok:$merge1", "afterok:$phase2"] {

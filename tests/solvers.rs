@@ -479,11 +479,7 @@ fn parallel_shooting_is_deterministic() {
             ..BakeConfig::default()
         };
         let run = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            on_threads(threads, || {
                 let b = radbake::bake(&scene, &cfg, &Silent).unwrap();
                 (
                     b.maps.lightmaps.pages.clone(),

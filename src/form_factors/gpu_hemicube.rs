@@ -376,20 +376,7 @@ fn targets(
     faces: u32,
 ) -> Targets {
     let texture = |format, usage| {
-        device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("hemicube atlas"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
-        })
+        crate::adapter::render_target(device, "hemicube atlas", (width, height), format, usage)
     };
     let color = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
     let read = |bytes: u32| {

@@ -43,7 +43,7 @@ pub fn render_headless(model: &Model, opts: &Options) -> Result<Headless> {
     r.resize(w, h);
     let frames = opts.frames.unwrap_or(1).max(1);
     let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
-    let target = renderer::render_target(&device, "headless", (w, h), format, usage);
+    let target = crate::adapter::render_target(&device, "headless", (w, h), format, usage);
     let view = target.create_view(&Default::default());
     // A warm-up frame (pipeline compilation, uploads), then the timed ones,
     // each waited for so the time is the GPU's, not the queue's.

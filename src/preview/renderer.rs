@@ -397,7 +397,7 @@ impl Renderer {
         match &self.depth {
             Some((view, dw, dh)) if (*dw, *dh) == (w, h) => view.clone(),
             _ => {
-                let texture = render_target(
+                let texture = crate::adapter::render_target(
                     &self.device,
                     "depth",
                     (w, h),
@@ -1061,28 +1061,4 @@ fn material_groups(
             })
         })
         .collect()
-}
-
-/// A single-sample 2D texture of `size` to render into.
-pub fn render_target(
-    device: &wgpu::Device,
-    label: &str,
-    (width, height): (u32, u32),
-    format: wgpu::TextureFormat,
-    usage: wgpu::TextureUsages,
-) -> wgpu::Texture {
-    device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage,
-        view_formats: &[],
-    })
 }

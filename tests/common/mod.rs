@@ -532,3 +532,13 @@ pub fn ktx2_level(path: &Path) -> (ktx2::Header, Vec<u8>) {
     let data = zstd::bulk::decompress(level.data, 1 << 30).unwrap();
     (reader.header(), data)
 }
+
+/// `f` run on a rayon pool of `threads` threads (for determinism tests).
+#[allow(dead_code)]
+pub fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("thread pool")
+        .install(f)
+}
