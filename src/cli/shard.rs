@@ -166,6 +166,16 @@ fn plan(a: &PlanArgs) -> Outcome {
         .map_err(|e| (classify(&e), format!("{e:#}")))?;
     refuse_unsupported(&config)?;
     let dir = absolute(&args.out)?;
+    let shell_safe = |c: char| c.is_ascii_alphanumeric() || "/._-+,:@".contains(c);
+    if !dir.to_string_lossy().chars().all(shell_safe) {
+        return Err((
+            1,
+            format!(
+                "{}: the work folder's path goes through schedulers' shells: use letters, digits and / . _ - + , : @ only",
+                dir.display()
+            ),
+        ));
+    }
     let io = |p: &Path, e: std::io::Error| (3, format!("{}: {e}", p.display()));
     std::fs::create_dir_all(dir.join("shards")).map_err(|e| io(&dir, e))?;
     // A new plan: slices of an earlier one must not be read by mistake.
