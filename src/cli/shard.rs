@@ -67,7 +67,7 @@ pub struct LocalArgs {
     /// Jobs at once.
     #[arg(long, default_value_t = 2)]
     pub jobs: u32,
-    /// Threads per job (`RAYON_NUM_THREADS`) [default: the machine's share].
+    /// Threads per job (`RAYON_NUM_THREADS`) [default: the cores divided among --jobs].
     #[arg(long)]
     pub threads: Option<u32>,
 }
@@ -427,13 +427,14 @@ fn local(a: &LocalArgs) -> Outcome {
     let exe =
         std::env::current_exe().map_err(|e| (3, format!("cannot find radbake itself: {e}")))?;
     let start = Instant::now();
+    // The machine's cores shared among the jobs at once, unless told.
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
+    let threads = a.threads.unwrap_or((cores / a.jobs.max(1)).max(1));
     let spawn = |c: &str| -> Result<(String, Instant, Child), (u8, String)> {
         let mut cmd = Command::new(&exe);
         cmd.args(c.split_whitespace().skip(1));
         cmd.stdout(Stdio::null()).stderr(Stdio::piped());
-        if let Some(n) = a.threads {
-            cmd.env("RAYON_NUM_THREADS", n.to_string());
-        }
+        cmd.env("RAYON_NUM_THREADS", threads.to_string());
         let child = cmd.spawn().map_err(|e| (3, format!("{c}: {e}")))?;
         Ok((c.to_owned(), Instant::now(), child))
     };
