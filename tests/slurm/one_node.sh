@@ -18,7 +18,7 @@ scene=${1:-scenes/cornell_box.gltf}
 shards=${2:-4}
 radbake=${RADBAKE:-$PWD/target/release/radbake}
 t0=$(date +%s.%N)
-say() { printf '[%6.1f s] %s\n' "$(echo "$(date +%s.%N) - $t0" | bc)" "$*"; }
+say() { printf '[%6.1f s] %s\n' "$(awk -v a="$(date +%s.%N)" -v b="$t0" 'BEGIN { print a - b }')" "$*"; }
 
 if ! command -v slurmctld >/dev/null || ! command -v munged >/dev/null; then
   say "installing slurm-wlm and munge"
