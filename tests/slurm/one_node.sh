@@ -86,10 +86,10 @@ say "one-machine bake of $scene"
 say "plan: $shards shards"
 "$radbake" shard plan "$scene" --out "$work/sharded" --shards "$shards" -q
 "$radbake" shard slurm "$work/sharded" --radbake "$radbake" > "$work/submit.sh"
-last=$(bash "$work/submit.sh")
+last=$(bash "$work/submit.sh") || { echo "sbatch refused the jobs" >&2; exit 77; }
 say "submitted; final merge is job $last"
 state=""
-for _ in $(seq 1800); do
+for _ in $(seq 900); do  # 3 minutes at most
   state=$(scontrol show job "$last" -o 2>/dev/null | grep -o 'JobState=[A-Z_]*' | cut -d= -f2 || true)
   reason=$(scontrol show job "$last" -o 2>/dev/null | grep -o 'Reason=[A-Za-z_]*' | cut -d= -f2 || true)
   case "$state" in
@@ -100,7 +100,12 @@ for _ in $(seq 1800); do
   sleep 0.2
 done
 if [ "$state" != COMPLETED ]; then
-  echo "the sharded bake did not complete: job $last $state" >&2
+  if ! ls "$work"/sharded/shards/slurm-*.log >/dev/null 2>&1; then
+    # Not one job started: Slurm cannot run jobs on this machine.
+    echo "Slurm ran no job here (job $last: ${state:-unknown})" >&2
+    exit 77
+  fi
+  echo "the sharded bake did not complete: job $last ${state:-still pending}" >&2
   tail -n 5 "$work"/sharded/shards/slurm-*.log >&2 || true
   exit 1
 fi
