@@ -485,12 +485,7 @@ pub(super) fn write_outputs(
 
 /// Stage times and counters (`--verbose`), the stats table (`--stats`),
 /// warnings and the one-line summary (unless `--quiet`).
-pub(super) fn print_summary(
-    args: &BakeArgs,
-    report: &radbake::report::Report,
-    start: Instant,
-    files: usize,
-) {
+fn print_summary(args: &BakeArgs, report: &radbake::report::Report, start: Instant, files: usize) {
     if args.verbose {
         for s in &report.stages {
             eprintln!("{:>13}: {:8.3} s", s.stage, s.seconds);

@@ -477,16 +477,12 @@ pub fn compute_on(
 ) -> anyhow::Result<FormFactors> {
     let cube = Hemicube::new(n);
     let patches: Vec<usize> = (0..s.patches.len()).collect();
-    let mut stats = FormFactorStats::default();
-    let mut rows = Vec::with_capacity(patches.len());
+    let mut results = Vec::with_capacity(patches.len());
     for chunk in patches.chunks(4096) {
-        for (r, st) in gpu.rows(s, &cube, chunk)? {
-            stats.add(&st);
-            rows.push(r);
-        }
+        results.extend(gpu.rows(s, &cube, chunk)?);
         advance(chunk.len() as u64);
     }
-    Ok(FormFactors::from_rows(patches.len(), rows, stats))
+    Ok(FormFactors::from_results(patches.len(), results))
 }
 
 /// Every row of F by the hemicube at resolution `n`.

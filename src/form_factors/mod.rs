@@ -77,6 +77,14 @@ impl FormFactors {
                 r
             })
             .collect();
+        FormFactors::from_results(n, results)
+    }
+
+    /// Builds F from every patch's row and counters, in patch order.
+    pub fn from_results(
+        n: usize,
+        results: impl IntoIterator<Item = (Vec<(u32, f32)>, FormFactorStats)>,
+    ) -> FormFactors {
         let mut stats = FormFactorStats::default();
         let mut rows = Vec::with_capacity(n);
         for (r, st) in results {

@@ -99,14 +99,20 @@ impl<'a> OnDemand<'a> {
 impl OnDemand<'_> {
     /// Row i of F (as the stored matrix would hold it).
     pub fn row(&self, i: usize) -> Vec<(u32, f32)> {
-        let (row, st) = match (&self.cube, self.method) {
-            (Some(cube), FormFactorMethod::Hemicube) => hemicube::row(self.surfaces, cube, i),
-            _ => raycast::row(self.surfaces, i, self.rays_per_patch, self.seed),
-        };
+        let (row, st) = self.counted(i);
         if let Ok(mut s) = self.stats.lock() {
             s.add(&st);
         }
         row
+    }
+
+    /// Row i of F on the CPU by the configured method, with its counters
+    /// (not added to [`OnDemand::stats`]).
+    pub fn counted(&self, i: usize) -> (Vec<(u32, f32)>, FormFactorStats) {
+        match (&self.cube, self.method) {
+            (Some(cube), FormFactorMethod::Hemicube) => hemicube::row(self.surfaces, cube, i),
+            _ => raycast::row(self.surfaces, i, self.rays_per_patch, self.seed),
+        }
     }
 }
 

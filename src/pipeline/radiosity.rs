@@ -420,14 +420,17 @@ fn direct_light(
         seed: config.seed,
     };
     let n = s.texels.len();
-    // Slices of equal cost: a texel enclosed in a solid casts nothing.
-    let cost: Vec<f64> = (0..n)
-        .map(|t| if s.burial.enclosed(t) { 0.01 } else { 1.0 })
-        .collect();
+    // Slices of equal cost (in a sharded bake): a texel enclosed in a
+    // solid casts nothing.
+    let cost = || -> Vec<f64> {
+        (0..n)
+            .map(|t| if s.burial.enclosed(t) { 0.01 } else { 1.0 })
+            .collect()
+    };
     let texels = shard.items(
         "direct",
         n,
-        |count| crate::shard::balanced(&cost, count),
+        |count| crate::shard::balanced(&cost(), count),
         |range| direct::texel_range(s, &lights, &settings, range, advance),
     )?;
     let parts = direct::assemble(texels);
@@ -464,39 +467,28 @@ fn sharded_form_factors(
 ) -> Result<FormFactors> {
     use rayon::prelude::*;
     let n = s.patches.len();
-    let cube = hemicube::Hemicube::new(config.hemicube_resolution);
-    let row = |i: usize| match config.form_factors {
-        FormFactorMethod::Hemicube => hemicube::row(s, &cube, i),
-        FormFactorMethod::Raycast => {
-            form_factors::raycast::row(s, i, config.rays_per_patch, config.seed)
-        }
-    };
+    let on_demand = OnDemand::new(s, config);
     // Slices of equal cost: a buried patch casts nothing.
-    let cost: Vec<f64> = (0..n)
-        .map(|i| if s.patch_buried(i) { 0.01 } else { 1.0 })
-        .collect();
+    let cost = || -> Vec<f64> {
+        (0..n)
+            .map(|i| if s.patch_buried(i) { 0.01 } else { 1.0 })
+            .collect()
+    };
     let rows = shard.items(
         "rows",
         n,
-        |count| crate::shard::balanced(&cost, count),
+        |count| crate::shard::balanced(&cost(), count),
         |range| {
             (range.into_par_iter())
                 .map(|i| {
-                    let r = row(i);
+                    let r = on_demand.counted(i);
                     advance(1);
                     r
                 })
                 .collect()
         },
     )?;
-    let mut stats = form_factors::FormFactorStats::default();
-    let rows = (rows.into_iter())
-        .map(|(r, st)| {
-            stats.add(&st);
-            r
-        })
-        .collect();
-    Ok(FormFactors::from_rows(n, rows, stats))
+    Ok(FormFactors::from_results(n, rows))
 }
 
 /// What the solve leaves for later shards: the solution, Σⱼ Fᵢⱼ and the

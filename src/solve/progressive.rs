@@ -251,7 +251,7 @@ impl<'a> Shooting<'a> {
 
 /// Rows of patches that may shoot again. A row pays only while its patch
 /// can still gather unshot light: a black patch (ρ = 0) shoots once, so
-/// its row is never kept ([`RowCache::pays`]). When the budget is full,
+/// its row is never kept ([`ShotRows::pays`]). When the budget is full,
 /// the half of the rows whose patches hold the least unshot power (the
 /// least likely to shoot soon) is dropped. What is cached changes the
 /// time, never the result.
@@ -260,8 +260,6 @@ pub struct ShotRows {
     rows: HashMap<u32, (Vec<(u32, f32)>, f32)>,
     entries: usize,
 }
-
-type RowCache = ShotRows;
 
 impl ShotRows {
     fn pays(i: usize, sys: &System) -> bool {
@@ -315,14 +313,15 @@ pub fn solve(
     let mut st = Shooting::new(sys);
     let initial = st.remaining;
     let mut row_sums = vec![f32::NAN; n];
-    let mut cache = RowCache::default();
-    let mut shots = 0u64;
+    let mut cache = ShotRows::default();
+    let (mut shots, mut resum) = (0u64, 0u64);
     if initial > 0.0 {
         st.show(initial, 0, false, observe);
     }
     while initial > 0.0 && shots < max_shots {
-        if shots % 4096 < BATCH as u64 {
+        if shots >= resum {
             st.remaining = st.powers.iter().sum(); // no drift from incremental updates
+            resum = shots + 4096;
         }
         if st.remaining / initial < tolerance as f64 {
             break;
@@ -338,13 +337,13 @@ pub fn solve(
         let fresh = rows.shooting_rows(&missing);
         let mut fresh: HashMap<usize, _> = missing.into_iter().zip(fresh).collect();
         let need = (fresh.iter())
-            .filter(|(&i, _)| RowCache::pays(i, sys))
+            .filter(|(&i, _)| ShotRows::pays(i, sys))
             .map(|(_, r)| r.0.len())
             .sum();
         cache.make_room(need, &st, &batch);
         for &(i, shoot) in &batch {
             if let Some(r) = fresh.remove(&i) {
-                if !RowCache::pays(i, sys) {
+                if !ShotRows::pays(i, sys) {
                     row_sums[i] = r.1;
                     st.shoot(&r.0, shoot);
                     continue;
