@@ -14,7 +14,7 @@ use glam::Vec2;
 /// One mesh's unwrap: its triangles re-indexed onto new vertices (split at
 /// chart seams), each with its input vertex (`xref`), its UV in `[0, 1]` of
 /// each instance rectangle, and its chart.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct MeshUnwrap {
     /// Input vertex of each output vertex.
     pub xref: Vec<u32>,
@@ -27,7 +27,7 @@ pub struct MeshUnwrap {
 }
 
 /// Where one instance lives in the atlas.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct InstanceRect {
     /// Atlas page.
     pub page: u32,
@@ -47,7 +47,7 @@ impl InstanceRect {
 }
 
 /// The lightmap atlas.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Atlas {
     /// Page width (texels).
     pub width: u32,

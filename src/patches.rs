@@ -10,7 +10,9 @@ use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 
 /// A patch index.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
 pub struct PatchId(pub u32);
 
 /// Key of a block: (instance, region, block x, block y); a region lies in
@@ -18,7 +20,7 @@ pub struct PatchId(pub u32);
 pub type BlockKey = (u32, u32, u32, u32);
 
 /// The patches (struct of arrays, indexed by [`PatchId`]).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Patches {
     /// Block size in texels (k).
     pub block: u32,

@@ -6,7 +6,7 @@
 //! the other slices from the files earlier jobs wrote:
 //!
 //! ```text
-//! plan               the texels and burial planes, once (prepared)
+//! plan               the atlas, texels, burial planes and patches, once (prepared)
 //! phase 1 (N jobs)   form-factor rows of a slice of patches, direct light of a slice of texels
 //! merge 1 (1 job)    every phase-1 slice read back; the solve
 //! phase 2 (N jobs)   the final gather of a slice of texels (sliced by cost)
@@ -27,9 +27,9 @@
 //! written atomically, so a job killed and run again leaves the same bytes.
 //!
 //! `shard plan` computes the stages before the sliced ones once and writes
-//! the costly ones ([`Sharding::prepared`]: texels, burial planes); every
-//! job imports the work folder's copy of the scene, unwraps it and builds
-//! its BVH and patches again (cheaper than reading them), and reads the rest.
+//! them ([`Sharding::prepared`]: atlas, texels, burial planes, patches);
+//! every job imports the work folder's copy of the scene, reads those, and
+//! builds the world triangles and the BVH again.
 
 use crate::error::{Error, Result};
 use serde::de::DeserializeOwned;
@@ -186,15 +186,15 @@ impl Sharding {
     ///
     /// # Errors
     /// As [`Sharding::items`].
-    pub fn prepared<T>(&self, stage: &str, compute: impl FnOnce() -> T) -> Result<T>
+    pub fn prepared<T>(&self, stage: &str, compute: impl FnOnce() -> Result<T>) -> Result<T>
     where
         T: Serialize + DeserializeOwned,
     {
         let path = self.merged_path(stage);
         match self.job {
-            Job::Whole => Ok(compute()),
+            Job::Whole => compute(),
             Job::Prepare => {
-                let v = compute();
+                let v = compute()?;
                 self.write(&path, stage, 1, 0..1, std::slice::from_ref(&v))?;
                 Ok(v)
             }

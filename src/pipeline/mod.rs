@@ -127,13 +127,13 @@ pub fn bake_with<'s>(
     let mut log = Log::new(progress, input_warnings(scene));
 
     log.begin("unwrap", 0);
-    let atlas = atlas::unwrap(scene, config)?;
+    let atlas = shard.prepared("atlas", || atlas::unwrap(scene, config))?;
     log.warnings.extend(atlas.warnings.iter().cloned());
     log.end("unwrap");
 
     log.begin("texels", 0);
     let geometry = Geometry::new(scene, &atlas);
-    let texels = shard.prepared("texels", || texels::rasterize(scene, &atlas, &geometry))?;
+    let texels = shard.prepared("texels", || Ok(texels::rasterize(scene, &atlas, &geometry)))?;
     log.end("texels");
 
     log.begin("bvh", 0);
@@ -141,9 +141,10 @@ pub fn bake_with<'s>(
     log.end("bvh");
 
     let burial = shard.prepared("burial", || {
-        burial_planes(scene, &geometry, &texels, &rays, config, &mut log)
+        Ok(burial_planes(
+            scene, &geometry, &texels, &rays, config, &mut log,
+        ))
     })?;
-    shard.checkpoint(0, false)?;
 
     log.begin("patches", 0);
     let texel_area: Vec<f32> = scene
@@ -151,8 +152,16 @@ pub fn bake_with<'s>(
         .iter()
         .map(|i| (atlas.texels_per_meter * i.texel_scale).powi(-2))
         .collect();
-    let patches = patches::build(&texels, &burial, config.patch_texels, &texel_area);
+    let patches = shard.prepared("patches", || {
+        Ok(patches::build(
+            &texels,
+            &burial,
+            config.patch_texels,
+            &texel_area,
+        ))
+    })?;
     log.end("patches");
+    shard.checkpoint(0, false)?;
 
     let surfaces = Surfaces {
         scene,
