@@ -143,21 +143,48 @@ pub fn run(args: &ServeArgs) -> Outcome {
             args.dir.display()
         ),
     }
-    for (served, request) in (1u64..).zip(server.incoming_requests()) {
-        let response = match resolve(&args.dir, request.url()) {
-            Some((bytes, m)) => {
-                let header =
-                    tiny_http::Header::from_bytes("Content-Type", m).expect("valid header");
-                tiny_http::Response::from_data(bytes).with_header(header)
-            }
-            None => tiny_http::Response::from_data(b"not found".to_vec()).with_status_code(404),
-        };
-        let _ = request.respond(response);
-        if args.requests.is_some_and(|n| served >= n) {
-            break;
-        }
-    }
+    answer(&server, &args.dir, args.requests);
     Ok(())
+}
+
+/// Worker threads answering requests: a browser fetches the page's modules
+/// over several connections at once, and one slow reader (its data pipe
+/// full until another module arrives) must not hold up the rest, as it can
+/// with a single thread writing one response at a time.
+const WORKERS: usize = 4;
+
+/// Answers requests on [`WORKERS`] threads until `limit` requests have been
+/// served (if given) or the listener fails.
+fn answer(server: &tiny_http::Server, dir: &Path, limit: Option<u64>) {
+    let served = std::sync::atomic::AtomicU64::new(0);
+    std::thread::scope(|scope| {
+        for _ in 0..WORKERS {
+            scope.spawn(|| {
+                // `recv` fails when the listener fails or when unblocked;
+                // either way every worker stops.
+                loop {
+                    let Ok(request) = server.recv() else {
+                        (0..WORKERS).for_each(|_| server.unblock());
+                        break;
+                    };
+                    let response = match resolve(dir, request.url()) {
+                        Some((bytes, m)) => {
+                            let header = tiny_http::Header::from_bytes("Content-Type", m)
+                                .expect("valid header");
+                            tiny_http::Response::from_data(bytes).with_header(header)
+                        }
+                        None => tiny_http::Response::from_data(b"not found".to_vec())
+                            .with_status_code(404),
+                    };
+                    let _ = request.respond(response);
+                    let n = served.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1;
+                    if limit == Some(n) {
+                        (0..WORKERS).for_each(|_| server.unblock());
+                    }
+                }
+            });
+        }
+    });
 }
 
 #[cfg(test)]
@@ -185,6 +212,47 @@ mod tests {
             assert!(resolve(&dir, bad).is_none(), "{bad}");
         }
         assert!(resolve(&dir, "/vendor/three/build/three.module.js").is_some());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A client that stops reading a large response does not hold up
+    /// another connection's request (a single writer thread would wait on
+    /// it forever), and `--requests` ends the server.
+    #[test]
+    fn a_stalled_reader_does_not_block_other_requests() {
+        use std::io::{Read as _, Write as _};
+        let dir = std::env::temp_dir().join(format!("radbake-serve-stall-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Far more than the loopback socket buffers hold unread.
+        std::fs::write(dir.join("big.bin"), vec![7u8; 64 << 20]).unwrap();
+        let server = tiny_http::Server::http("127.0.0.1:0").unwrap();
+        let addr = server.server_addr().to_ip().unwrap();
+        let served = {
+            let dir = dir.clone();
+            std::thread::spawn(move || answer(&server, &dir, Some(2)))
+        };
+        let mut stalled = std::net::TcpStream::connect(addr).unwrap();
+        write!(stalled, "GET /bake/big.bin HTTP/1.1\r\nHost: x\r\n\r\n").unwrap();
+        // Wait until the big response has started (its worker is now stuck
+        // writing), then ask for the page on a second connection.
+        let mut first = [0u8; 12];
+        stalled.read_exact(&mut first).unwrap();
+        assert_eq!(&first, b"HTTP/1.1 200");
+        let mut page = std::net::TcpStream::connect(addr).unwrap();
+        page.set_read_timeout(Some(std::time::Duration::from_secs(20)))
+            .unwrap();
+        write!(
+            page,
+            "GET / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+        )
+        .unwrap();
+        let mut reply = Vec::new();
+        page.read_to_end(&mut reply)
+            .expect("the page was not served");
+        assert!(reply.starts_with(b"HTTP/1.1 200"));
+        assert!(String::from_utf8_lossy(&reply).contains("<html"));
+        drop(stalled);
+        served.join().unwrap();
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

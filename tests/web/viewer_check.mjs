@@ -28,8 +28,19 @@ try {
   tab.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
   tab.on('requestfailed', (r) => errors.push(`request failed: ${r.url()}`));
   tab.on('response', (r) => { if (r.status() >= 400) errors.push(`${r.status()} ${r.url()}`); });
-  await tab.goto(url, { waitUntil: 'domcontentloaded', timeout: 120000 });
-  await tab.waitForFunction('window.radbake && (window.radbake.ready || window.radbake.error)', { timeout: 120000 });
+  // Requests in flight, named if the page times out.
+  const started = Date.now();
+  const pending = new Map();
+  tab.on('request', (r) => pending.set(r, Date.now()));
+  tab.on('requestfinished', (r) => pending.delete(r));
+  tab.on('requestfailed', (r) => pending.delete(r));
+  try {
+    await tab.goto(url, { waitUntil: 'domcontentloaded', timeout: 120000 });
+    await tab.waitForFunction('window.radbake && (window.radbake.ready || window.radbake.error)', { timeout: 120000 });
+  } catch (e) {
+    const open = [...pending].map(([r, t]) => `${r.url()} (since ${((t - started) / 1000).toFixed(1)} s)`);
+    throw new Error(`${e.message}; requests still open: ${open.length ? open.join(', ') : 'none'}`);
+  }
   const state = await tab.evaluate(() => ({ ...window.radbake, three: window.__THREE__ }));
   if (state.error) errors.push(state.error);
   const data = await tab.evaluate(() => document.getElementById('view').toDataURL('image/png'));
