@@ -114,46 +114,152 @@ fn sdf_ao(p: vec3<f32>, n: vec3<f32>, reach: f32) -> f32 {
     return sum / weights;
 }
 
-// The first zero crossing of the field along o + t dir within the box:
-// sphere tracing (steps of the distance, at least a quarter voxel), the
-// crossing bracketed by a sign change and refined by bisection; a surface
-// the field only touches (double-sided faces: unsigned) within a tenth of
-// a voxel counts too. -1 where there is none.
+// The march's constants: those of src/sdf.rs (voxels; slopes unitless),
+// so that the view shows the surfaces `Sdf::march` finds.
+const SDF_MARCH_STEPS: i32 = 4096;
+const SDF_MIN_STEP: f32 = 0.25;
+const SDF_SURFACE_SLOPE: f32 = 1.3;
+const SDF_NEAR: f32 = 0.75;
+const SDF_UNSIGNED: f32 = 0.25;
+const SDF_UNSIGNED_FLAT: f32 = 0.51;
+const SDF_FLAT: f32 = 0.5;
+
+// The field's gradient at q, by central differences half a voxel either
+// side.
+fn sdf_gradient(q: vec3<f32>) -> vec3<f32> {
+    let h = 0.5 * globals.sdf_min.w;
+    return vec3<f32>(
+        sdf_at(q + vec3<f32>(h, 0.0, 0.0)) - sdf_at(q - vec3<f32>(h, 0.0, 0.0)),
+        sdf_at(q + vec3<f32>(0.0, h, 0.0)) - sdf_at(q - vec3<f32>(0.0, h, 0.0)),
+        sdf_at(q + vec3<f32>(0.0, 0.0, h)) - sdf_at(q - vec3<f32>(0.0, 0.0, h)),
+    ) / (2.0 * h);
+}
+
+// The zero crossing between steps a and b (x: t, y: the field, of opposite
+// signs): bisected to a 32nd of a voxel, then linear. -1 where it is no
+// surface: the field's slope along the ray there, or its gradient, longer
+// than SDF_SURFACE_SLOPE (a distance's gradient is a unit vector; a sign
+// flip in open air has a far steeper one). `Sdf::crossing`.
+fn sdf_crossing(o: vec3<f32>, dir: vec3<f32>, a: vec2<f32>, b: vec2<f32>) -> f32 {
+    let voxel = globals.sdf_min.w;
+    var lo = a;
+    var hi = b;
+    for (var k = 0; k < 16; k++) {
+        if hi.x - lo.x <= voxel / 32.0 {
+            break;
+        }
+        let tm = 0.5 * (lo.x + hi.x);
+        let dm = sdf_at(o + dir * tm);
+        if (dm < 0.0) == (lo.y < 0.0) {
+            lo = vec2<f32>(tm, dm);
+        } else {
+            hi = vec2<f32>(tm, dm);
+        }
+    }
+    let sum = abs(lo.y) + abs(hi.y);
+    if sum > SDF_SURFACE_SLOPE * (hi.x - lo.x) + 1e-3 * voxel {
+        return -1.0;
+    }
+    var t = lo.x;
+    if sum > 0.0 {
+        t = lo.x + (hi.x - lo.x) * abs(lo.y) / sum;
+    }
+    if length(sdf_gradient(o + dir * t)) > SDF_SURFACE_SLOPE {
+        return -1.0;
+    }
+    return t;
+}
+
+// The t in [a, b] where s * field is least (golden-section search, 10
+// steps), and the field there. `Sdf::minimum`.
+fn sdf_minimum(o: vec3<f32>, dir: vec3<f32>, s: f32, a0: f32, b0: f32) -> vec2<f32> {
+    let r = 0.618034;
+    var a = a0;
+    var b = b0;
+    var c = b - r * (b - a);
+    var e = a + r * (b - a);
+    var fc = sdf_at(o + dir * c);
+    var fe = sdf_at(o + dir * e);
+    for (var k = 0; k < 10; k++) {
+        if s * fc < s * fe {
+            b = e;
+            e = c;
+            fe = fc;
+            c = b - r * (b - a);
+            fc = sdf_at(o + dir * c);
+        } else {
+            a = c;
+            c = e;
+            fc = fe;
+            e = a + r * (b - a);
+            fe = sdf_at(o + dir * e);
+        }
+    }
+    if s * fc < s * fe {
+        return vec2<f32>(c, fc);
+    }
+    return vec2<f32>(e, fe);
+}
+
+// At a local minimum of |field| between step a (t, field) and tb, on the
+// side s (±1): the hit there, or -1. `Sdf::unsigned`.
+fn sdf_unsigned(o: vec3<f32>, dir: vec3<f32>, a: vec2<f32>, s: f32, tb: f32) -> f32 {
+    let voxel = globals.sdf_min.w;
+    let m = sdf_minimum(o, dir, s, a.x, tb);
+    if m.y * s < 0.0 {
+        return sdf_crossing(o, dir, a, m);
+    }
+    if abs(m.y) < SDF_UNSIGNED * voxel {
+        return m.x;
+    }
+    if abs(m.y) < SDF_UNSIGNED_FLAT * voxel && length(sdf_gradient(o + dir * m.x)) < SDF_FLAT {
+        return m.x;
+    }
+    return -1.0;
+}
+
+// The first surface along o + t dir within the field's box, or -1: the
+// CPU's march (`Sdf::march` in src/sdf.rs, whose comment gives the
+// reasons), step for step. Sphere tracing (Hart 1996) by the |field| less
+// half a voxel, at least a quarter voxel; a hit is a sign change whose
+// crossing has a distance's slope (either way round: a ray from behind a
+// one-sided face meets it where the field turns positive), or a local
+// minimum of |field| near zero (double-sided and back-to-back faces,
+// which have no sign change).
 fn sdf_trace(o: vec3<f32>, dir: vec3<f32>) -> f32 {
     let voxel = globals.sdf_min.w;
     let span = sdf_box(o, dir);
     if span.x > span.y {
         return -1.0;
     }
-    var a = span.x;
-    var da = sdf_at(o + dir * a);
-    if da <= 0.0 {
-        return a;
-    }
-    for (var i = 0; i < 512; i++) {
-        if da < 0.1 * voxel {
-            return a;
-        }
-        let b = a + max(da, 0.25 * voxel);
-        if b > span.y {
+    let leave = span.y;
+    var t = span.x;
+    var d = sdf_at(o + dir * t);
+    // The step before (t, d), once there is one.
+    var before = vec2<f32>(0.0);
+    var has_before = false;
+    for (var i = 0; i < SDF_MARCH_STEPS; i++) {
+        if t >= leave {
             return -1.0;
         }
-        let db = sdf_at(o + dir * b);
-        if db < 0.0 {
-            var lo = a;
-            var hi = b;
-            for (var k = 0; k < 8; k++) {
-                let m = 0.5 * (lo + hi);
-                if sdf_at(o + dir * m) < 0.0 {
-                    hi = m;
-                } else {
-                    lo = m;
-                }
+        let next_t = min(t + max(abs(d) - 0.5 * voxel, SDF_MIN_STEP * voxel), leave);
+        let next_d = sdf_at(o + dir * next_t);
+        if (d < 0.0) != (next_d < 0.0) {
+            let hit = sdf_crossing(o, dir, vec2<f32>(t, d), vec2<f32>(next_t, next_d));
+            if hit >= 0.0 {
+                return hit;
             }
-            return 0.5 * (lo + hi);
+        } else if has_before && (before.y < 0.0) == (d < 0.0) && abs(d) < SDF_NEAR * voxel
+            && abs(d) < abs(before.y) && abs(d) <= abs(next_d) {
+            let hit = sdf_unsigned(o, dir, before, select(1.0, -1.0, d < 0.0), next_t);
+            if hit >= 0.0 {
+                return hit;
+            }
         }
-        a = b;
-        da = db;
+        before = vec2<f32>(t, d);
+        has_before = true;
+        t = next_t;
+        d = next_d;
     }
     return -1.0;
 }
