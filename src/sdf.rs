@@ -13,8 +13,11 @@
 //! - **Sign**: where the nearest point lies inside a one-sided triangle
 //!   (not on an edge), the side of that triangle the voxel is on: behind
 //!   it is inside (the pseudo-normal rule of Bærentzen & Aanæs 2005,
-//!   exact on a face). Elsewhere (nearest on an edge or a vertex, or on a
-//!   double-sided material) by ray voting against one-sided faces, as
+//!   exact on a face), except that a voxel in front of its nearest face
+//!   casts one ray along that face's normal, and votes where the ray
+//!   meets the back of a one-sided face (it is enclosed over the face: a
+//!   solid without a bottom face standing on a floor). Elsewhere (nearest
+//!   on an edge or a vertex, or on a double-sided material) by ray voting against one-sided faces, as
 //!   Unreal's mesh distance fields do: rays from the voxel's centre in a
 //!   fixed spherical Fibonacci set; a ray that first meets the back of a
 //!   one-sided face votes *inside*, one that meets a front face, a
@@ -484,28 +487,45 @@ fn signs(
         .into_par_iter()
         .map(|i| {
             let p = grid.centre(i);
-            if let Some(inside) = face_sign(scene, g, p, nearest[i]) {
-                return (inside, 0);
+            let mut cast = 0;
+            match face_sign(scene, g, p, nearest[i]) {
+                Some(true) => return (true, 0),
+                // In front of the nearest face, and not enclosed over it.
+                Some(false) => {
+                    cast = 1;
+                    if !meets_back(scene, g, rays, p, g.ng_ws[nearest[i].1 as usize]) {
+                        return (false, cast);
+                    }
+                }
+                None => {}
             }
-            let (inside, total, cast) = votes(scene, g, rays, p);
-            (2 * inside > total, cast)
+            let (inside, total, votes_cast) = votes(scene, g, rays, p);
+            (2 * inside > total, cast + votes_cast)
         })
         .collect();
     let cast = out.iter().map(|o| o.1).sum();
     (out.into_iter().map(|o| o.0).collect(), cast)
 }
 
+/// Whether the ray from `p` along `d` first meets the back of a one-sided
+/// face: an *inside* vote ([`votes`]). Also the check on a voxel in front
+/// of its nearest face ([`signs`]): along that face's normal it meets a
+/// back face where it is enclosed over the face, as inside a solid with
+/// no bottom face standing on a floor (the floor is nearest, seen from
+/// its front, and alone would call the solid's lower part free space).
+fn meets_back(scene: &Scene, g: &Geometry, rays: &RayCaster, p: Vec3, d: Vec3) -> bool {
+    let Some(hit) = rays.closest_hit(p, d, f32::INFINITY) else {
+        return false;
+    };
+    let tri = hit.tri as usize;
+    g.ng_ws[tri].dot(d) > 0.0 && !scene.materials[g.material[tri] as usize].double_sided
+}
+
 /// The sign votes at `p`: (inside votes, votes, rays cast). [`VOTES`]
 /// rays of a spherical Fibonacci set, and [`MORE_VOTES`] more where a
 /// quarter to three quarters of the first ones said inside.
 fn votes(scene: &Scene, g: &Geometry, rays: &RayCaster, p: Vec3) -> (u32, u32, u64) {
-    let vote = |d: Vec3| -> bool {
-        let Some(hit) = rays.closest_hit(p, d, f32::INFINITY) else {
-            return false;
-        };
-        let tri = hit.tri as usize;
-        g.ng_ws[tri].dot(d) > 0.0 && !scene.materials[g.material[tri] as usize].double_sided
-    };
+    let vote = |d: Vec3| meets_back(scene, g, rays, p, d);
     let first = (0..VOTES)
         .filter(|&k| vote(crate::probes::light::fibonacci(k, VOTES)))
         .count() as u32;

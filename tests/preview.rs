@@ -1637,7 +1637,9 @@ fn sdf_view_traces_as_the_cpu_marches() {
             );
             let near = inv.project_point3(ndc.extend(1.0));
             let far = inv.project_point3(ndc.extend(0.5));
-            let cpu = sdf.march(near, (far - near).normalize(), f32::INFINITY).is_some();
+            let cpu = sdf
+                .march(near, (far - near).normalize(), f32::INFINITY)
+                .is_some();
             let gpu = image.get_pixel(x, y).0[..3].iter().any(|&c| c > 0);
             hits += cpu as u32;
             if cpu != gpu {
@@ -1651,8 +1653,15 @@ fn sdf_view_traces_as_the_cpu_marches() {
         differ.len(),
         &differ[..differ.len().min(12)]
     );
-    assert!(hits as usize > n / 4 && (hits as usize) < n - n / 20, "{hits} hits");
-    assert!(differ.len() * 2000 <= n, "{} of {n} pixels differ", differ.len());
+    assert!(
+        hits as usize > n / 4 && (hits as usize) < n - n / 20,
+        "{hits} hits"
+    );
+    assert!(
+        differ.len() * 2000 <= n,
+        "{} of {n} pixels differ",
+        differ.len()
+    );
 }
 
 /// The sdf view shows the field: looking down on the box scene, the pixel
