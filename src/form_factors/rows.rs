@@ -81,10 +81,9 @@ impl<'a> OnDemand<'a> {
     fn shooting(&self, i: usize, row: Vec<(u32, f32)>) -> (Vec<(u32, f32)>, f32) {
         let area = &self.surfaces.patches.area;
         let sum = row.iter().map(|e| e.1).sum();
-        let ai = area[i];
         (
             row.into_iter()
-                .map(|(j, f)| (j, f * ai / area[j as usize]))
+                .map(|(j, f)| (j, crate::solve::reciprocal(f, i, j as usize, area)))
                 .collect(),
             sum,
         )
@@ -136,6 +135,17 @@ impl ShootingRows for OnDemand<'_> {
             .zip(rows)
             .map(|(&i, r)| self.shooting(i, r))
             .collect()
+    }
+    fn reciprocal_rows(&self, batch: &[usize]) -> Option<Vec<(Vec<(u32, f32)>, f32)>> {
+        let rows = self.rows(batch);
+        Some(
+            rows.into_iter()
+                .map(|r| {
+                    let sum = r.iter().map(|e| e.1).sum();
+                    (r, sum)
+                })
+                .collect(),
+        )
     }
 }
 

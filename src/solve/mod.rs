@@ -58,6 +58,24 @@ pub trait ShootingRows: Sync {
         use rayon::prelude::*;
         batch.par_iter().map(|&i| self.shooting_row(i)).collect()
     }
+    /// Where the source's shooting rows are the patches' own rows scaled
+    /// by reciprocity (Sᵢⱼ = Fᵢⱼ Aᵢ / Aⱼ): those rows Fᵢ· and their sums, in
+    /// the batch's order, so that a solve may hold the exact rows, scale
+    /// them as it shoots and gather from them afterwards
+    /// ([`progressive::gather_sweeps`]). None (the default) where they are
+    /// not (a stored F's columns).
+    fn reciprocal_rows(&self, _batch: &[usize]) -> Option<Vec<(Vec<(u32, f32)>, f32)>> {
+        None
+    }
+}
+
+/// Shooting coefficient Sᵢⱼ = Fᵢⱼ Aᵢ / Aⱼ from form factor `f` = Fᵢⱼ by
+/// reciprocity (Aᵢ Fᵢⱼ = Aⱼ Fⱼᵢ): one expression wherever a shooting row
+/// is made from a gathering row, so that rows held and rows made afresh
+/// shoot the same bits.
+#[inline]
+pub fn reciprocal(f: f32, i: usize, j: usize, area: &[f32]) -> f32 {
+    f * area[i] / area[j]
 }
 
 /// Rows of F for gathering: `gathering_row(i)` lists (j, Fᵢⱼ), the row

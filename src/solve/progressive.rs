@@ -6,7 +6,8 @@
 //! ΔLⱼ += ρⱼ ΔHⱼ. Up to [`BATCH`] shooters go per step, their rows cast in
 //! parallel and applied in a fixed order, so the result does not depend on
 //! the thread count. Nothing n × n is kept: memory is O(n) plus a row cache
-//! of fixed size (a patch is typically shot many times). Stops when the
+//! sized by the memory available ([`cache_budget`]; a patch is typically
+//! shot many times). Stops when the
 //! unshot power falls below `tolerance` × the initial power.
 //! [`gather_sweeps`] then gathers at every patch from its own row.
 
@@ -126,8 +127,35 @@ pub fn ambient(sys: &System, unshot: &[Vec3]) -> Vec3 {
 /// Up to this many patches the shooter is found by a linear scan.
 const SCAN_MAX_PATCHES: usize = 1 << 15;
 
-/// Row-cache budget in (column, value) entries: 32 M entries = 256 MB.
-const CACHE_ENTRIES: usize = 32 << 20;
+/// The row cache's least budget in (column, value) entries: 32 M entries =
+/// 256 MB ([`cache_budget`]).
+const CACHE_MIN_ENTRIES: usize = 32 << 20;
+
+/// Bytes of one cached (column, value) entry.
+const ENTRY_BYTES: usize = std::mem::size_of::<(u32, f32)>();
+
+/// The row cache's budget in entries: a quarter of the memory the system
+/// reports available when the solve starts (`MemAvailable` in
+/// `/proc/meminfo`; [`CACHE_MIN_ENTRIES`] where there is none), at least
+/// [`CACHE_MIN_ENTRIES`]. A fixed 256 MB held 11 % of the furnace's rows at
+/// its default density (20,184 patches, 290 M entries), and its patches,
+/// each shot about 8 times, cast their hemicubes again and again: 219 s,
+/// where the rows made once take 38 s (2.4 GB). What is cached changes
+/// the time, never the result ([`ShotRows`]).
+fn cache_budget() -> usize {
+    available_memory().map_or(CACHE_MIN_ENTRIES, |bytes| {
+        (bytes / 4 / ENTRY_BYTES as u64).clamp(CACHE_MIN_ENTRIES as u64, usize::MAX as u64) as usize
+    })
+}
+
+/// The memory the system reports available, in bytes (Linux's
+/// `MemAvailable`; None elsewhere or where it cannot be read).
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb.saturating_mul(1024))
+}
 
 /// Shooters per step: up to this many patches shoot together, their rows
 /// computed concurrently (one row per thread) and then applied one after
@@ -235,10 +263,13 @@ impl<'a> Shooting<'a> {
     }
 
     /// Distributes `shoot` along shooter's coefficients: ΔHⱼ = Sᵢⱼ ΔLᵢ,
-    /// Hⱼ += ΔHⱼ, Lⱼ += ρⱼ ΔHⱼ, ΔLⱼ += ρⱼ ΔHⱼ.
-    fn shoot(&mut self, row: &[(u32, f32)], shoot: Vec3) {
-        for &(j, s) in row {
+    /// Hⱼ += ΔHⱼ, Lⱼ += ρⱼ ΔHⱼ, ΔLⱼ += ρⱼ ΔHⱼ. `row` holds the Sᵢⱼ, or with
+    /// `reciprocal` = Some(i) shooter i's own Fᵢⱼ, scaled here
+    /// ([`crate::solve::reciprocal`]).
+    fn shoot(&mut self, row: &[(u32, f32)], shoot: Vec3, reciprocal: Option<usize>) {
+        for &(j, v) in row {
             let j = j as usize;
+            let s = reciprocal.map_or(v, |i| crate::solve::reciprocal(v, i, j, self.sys.area));
             let dh = shoot * s;
             self.irradiance[j] += dh;
             let dl = self.sys.albedo[j] * dh;
@@ -254,21 +285,37 @@ impl<'a> Shooting<'a> {
 /// its row is never kept ([`ShotRows::pays`]). When the budget is full,
 /// the half of the rows whose patches hold the least unshot power (the
 /// least likely to shoot soon) is dropped. What is cached changes the
-/// time, never the result.
+/// time, never the result: where the source's rows are reciprocal
+/// ([`ShootingRows::reciprocal_rows`]) the cache holds each patch's own
+/// row Fᵢ· exactly as it would be made again, and scales it as it shoots.
+/// (It used to hold the scaled Sᵢ· and scale them back for the gathering
+/// sweeps, which is exact only up to rounding: the lightmaps then depended
+/// on which rows the budget had kept.)
 #[derive(Default)]
 pub struct ShotRows {
     rows: HashMap<u32, (Vec<(u32, f32)>, f32)>,
     entries: usize,
+    /// Most entries held ([`cache_budget`]).
+    budget: usize,
+    /// The rows are the patches' own rows Fᵢ·, not shooting rows Sᵢ·.
+    reciprocal: bool,
 }
 
 impl ShotRows {
+    fn new(budget: usize) -> ShotRows {
+        ShotRows {
+            budget,
+            ..ShotRows::default()
+        }
+    }
+
     fn pays(i: usize, sys: &System) -> bool {
         sys.albedo[i] != Vec3::ZERO
     }
 
     /// Drops rows until `need` more entries fit, never those of `batch`.
     fn make_room(&mut self, need: usize, st: &Shooting, batch: &[(usize, Vec3)]) {
-        if self.entries + need <= CACHE_ENTRIES {
+        if self.entries + need <= self.budget {
             return;
         }
         let mut held: Vec<(f64, u32)> = (self.rows.keys())
@@ -277,7 +324,7 @@ impl ShotRows {
             .collect();
         held.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         for (dropped, &(_, k)) in held.iter().enumerate() {
-            if dropped >= held.len().div_ceil(2) && self.entries + need <= CACHE_ENTRIES {
+            if dropped >= held.len().div_ceil(2) && self.entries + need <= self.budget {
                 break;
             }
             if let Some(r) = self.rows.remove(&k) {
@@ -309,11 +356,24 @@ pub fn solve(
     advance: &dyn Fn(u64),
     observe: &mut dyn FnMut(&Partial),
 ) -> Progressive {
+    let mut cache = ShotRows::new(cache_budget());
+    cache.reciprocal = rows.reciprocal_rows(&[]).is_some();
+    solve_caching(rows, sys, (tolerance, max_shots), cache, advance, observe)
+}
+
+/// [`solve`] with the row cache `cache` (its budget set).
+fn solve_caching(
+    rows: &dyn ShootingRows,
+    sys: &System,
+    (tolerance, max_shots): (f32, u64),
+    mut cache: ShotRows,
+    advance: &dyn Fn(u64),
+    observe: &mut dyn FnMut(&Partial),
+) -> Progressive {
     let n = sys.len();
     let mut st = Shooting::new(sys);
     let initial = st.remaining;
     let mut row_sums = vec![f32::NAN; n];
-    let mut cache = ShotRows::default();
     let (mut shots, mut resum) = (0u64, 0u64);
     if initial > 0.0 {
         st.show(initial, 0, false, observe);
@@ -334,7 +394,10 @@ pub fn solve(
             .filter(|(i, _)| !cache.rows.contains_key(&(*i as u32)))
             .map(|&(i, _)| i)
             .collect();
-        let fresh = rows.shooting_rows(&missing);
+        let fresh = match cache.reciprocal {
+            true => rows.reciprocal_rows(&missing).unwrap_or_default(),
+            false => rows.shooting_rows(&missing),
+        };
         let mut fresh: HashMap<usize, _> = missing.into_iter().zip(fresh).collect();
         let need = (fresh.iter())
             .filter(|(&i, _)| ShotRows::pays(i, sys))
@@ -342,17 +405,18 @@ pub fn solve(
             .sum();
         cache.make_room(need, &st, &batch);
         for &(i, shoot) in &batch {
+            let reciprocal = cache.reciprocal.then_some(i);
             if let Some(r) = fresh.remove(&i) {
                 if !ShotRows::pays(i, sys) {
                     row_sums[i] = r.1;
-                    st.shoot(&r.0, shoot);
+                    st.shoot(&r.0, shoot, reciprocal);
                     continue;
                 }
                 cache.insert(i, r);
             }
             let (row, sum) = &cache.rows[&(i as u32)];
             row_sums[i] = *sum;
-            st.shoot(row, shoot);
+            st.shoot(row, shoot, reciprocal);
         }
         let before = shots;
         shots += batch.len() as u64;
@@ -392,10 +456,11 @@ const SWEEP_CHUNK: usize = 4096;
 /// receivers (and biased for the hemicube's point-sampled rows); each sweep
 /// puts the accuracy back on the receiving side (dividing the shooting
 /// error by ~1/ρ). Rows are made and dropped, so memory stays O(n).
-/// `shot`: rows the solve still holds, shooting rows made from gathering
-/// rows by reciprocity (Sⱼₖ = Fⱼₖ Aⱼ / Aₖ, as [`crate::form_factors::rows::OnDemand`]
-/// makes them), turned back (Fⱼₖ = Sⱼₖ Aₖ / Aⱼ) instead of cast again.
-/// Returns Σₖ Fⱼₖ per patch (every patch's row is computed).
+/// `shot`: rows the solve still holds; where they are the patches' own
+/// rows Fⱼ· (a reciprocal source, [`ShootingRows::reciprocal_rows`], as
+/// [`crate::form_factors::rows::OnDemand`]) they are used as they are,
+/// bit for bit the rows `rows` would make again, instead of being cast
+/// again. Returns Σₖ Fⱼₖ per patch (every patch's row is computed).
 pub fn gather_sweeps(
     rows: &dyn GatheringRows,
     sys: &System,
@@ -403,7 +468,11 @@ pub fn gather_sweeps(
     sweeps: u32,
     shot: Option<&ShotRows>,
 ) -> Vec<f32> {
-    let cached = |j: usize| shot.and_then(|c| c.rows.get(&(j as u32)));
+    // Held rows are each patch's own row, as `rows` would make it again.
+    let cached = |j: usize| {
+        shot.filter(|c| c.reciprocal)
+            .and_then(|c| c.rows.get(&(j as u32)))
+    };
     let mut gathered: Vec<(Vec3, f32)> = Vec::new();
     let all: Vec<usize> = (0..sys.len()).collect();
     for _ in 0..sweeps {
@@ -422,14 +491,8 @@ pub fn gather_sweeps(
                 .collect();
             let part: Vec<(Vec3, f32)> = (chunk.par_iter())
                 .map(|&j| {
-                    let converted;
                     let row: &[(u32, f32)] = match cached(j) {
-                        Some((s, _)) => {
-                            converted = (s.iter())
-                                .map(|&(k, v)| (k, v * sys.area[k as usize] / sys.area[j]))
-                                .collect::<Vec<_>>();
-                            &converted
-                        }
+                        Some((f, _)) => f,
                         None => &fresh[&j],
                     };
                     let h = row
@@ -453,6 +516,107 @@ pub fn gather_sweeps(
 mod tests {
     use super::Tournament;
     use crate::sampling::Stream;
+
+    /// Rows Fᵢ· of a random enclosure-like system, counting the rows made;
+    /// a reciprocal source, as the bake's on-demand rows are.
+    struct Counted {
+        rows: Vec<Vec<(u32, f32)>>,
+        area: Vec<f32>,
+        made: std::sync::atomic::AtomicUsize,
+    }
+
+    impl Counted {
+        fn made(&self, i: usize) -> Vec<(u32, f32)> {
+            self.made.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            self.rows[i].clone()
+        }
+    }
+
+    impl crate::solve::ShootingRows for Counted {
+        fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32) {
+            let r = self.made(i);
+            let sum = r.iter().map(|e| e.1).sum();
+            let s = r
+                .into_iter()
+                .map(|(j, f)| (j, crate::solve::reciprocal(f, i, j as usize, &self.area)));
+            (s.collect(), sum)
+        }
+        fn reciprocal_rows(&self, batch: &[usize]) -> Option<Vec<(Vec<(u32, f32)>, f32)>> {
+            let rows = batch.iter().map(|&i| {
+                let r = self.made(i);
+                let sum = r.iter().map(|e| e.1).sum();
+                (r, sum)
+            });
+            Some(rows.collect())
+        }
+    }
+
+    impl crate::solve::GatheringRows for Counted {
+        fn gathering_row(&self, i: usize) -> Vec<(u32, f32)> {
+            self.made(i)
+        }
+    }
+
+    /// The row cache's budget changes how often rows are made, never the
+    /// solution: a cache of 50 entries (a row and a half) against one that
+    /// holds every row, through the shooting and the two gathering sweeps
+    /// (which take the held rows), bit for bit. (With the cache holding
+    /// scaled shooting rows, scaled back for the sweeps, the two differed
+    /// in the last bits.)
+    #[test]
+    fn the_cache_budget_changes_only_the_time() {
+        use glam::Vec3;
+        let n = 120;
+        let mut rng = Stream::new(11, 0, 0);
+        let area: Vec<f32> = (0..n).map(|i| 1.0 + (i % 5) as f32 * 0.37).collect();
+        let rows: Vec<Vec<(u32, f32)>> = (0..n)
+            .map(|i| {
+                let mut row = Vec::new();
+                for j in 0..n as u32 {
+                    if j as usize != i && rng.below(3) == 0 {
+                        row.push((j, 0.9 / 40.0 * (0.5 + rng.below(100) as f32 / 100.0)));
+                    }
+                }
+                row
+            })
+            .collect();
+        let emission: Vec<Vec3> = (0..n)
+            .map(|i| if i % 17 == 0 { Vec3::ONE } else { Vec3::ZERO })
+            .collect();
+        let albedo = vec![Vec3::splat(0.8); n];
+        let direct = vec![Vec3::ZERO; n];
+        let sys = crate::solve::System {
+            emission: &emission,
+            albedo: &albedo,
+            direct: &direct,
+            area: &area,
+        };
+        let solve = |budget| {
+            let src = Counted {
+                rows: rows.clone(),
+                area: area.clone(),
+                made: Default::default(),
+            };
+            let mut cache = super::ShotRows::new(budget);
+            cache.reciprocal = true;
+            let out =
+                super::solve_caching(&src, &sys, (1e-4, 100_000), cache, &|_| {}, &mut |_| {});
+            let shot = src.made.swap(0, std::sync::atomic::Ordering::Relaxed);
+            let mut solution = out.solution;
+            super::gather_sweeps(&src, &sys, &mut solution, 2, Some(&out.rows));
+            (solution.radiance, shot, src.made.into_inner())
+        };
+        let (small, shot_small, swept_small) = solve(50);
+        let (large, shot_large, swept_large) = solve(usize::MAX);
+        assert_eq!((shot_large, swept_large), (n, 0), "every row made once");
+        assert!(shot_small > 2 * n, "rows made {shot_small}");
+        assert!(swept_small > n, "rows made for the sweeps {swept_small}");
+        assert!(small
+            .iter()
+            .zip(&large)
+            .all(|(a, b)| a.to_array() == b.to_array()));
+        assert!(large.iter().any(|r| r.x > 0.0));
+    }
 
     /// The tree always names the patch a linear scan (first index on ties)
     /// would, through random updates, zeros and ties, for sizes that are and
