@@ -136,7 +136,7 @@ impl ShootingRows for OnDemand<'_> {
             .map(|(&i, r)| self.shooting(i, r))
             .collect()
     }
-    fn reciprocal_rows(&self, batch: &[usize]) -> Option<Vec<(Vec<(u32, f32)>, f32)>> {
+    fn reciprocal_rows(&self, batch: &[usize]) -> Option<crate::solve::SummedRows> {
         let rows = self.rows(batch);
         Some(
             rows.into_iter()

@@ -64,10 +64,13 @@ pub trait ShootingRows: Sync {
     /// them as it shoots and gather from them afterwards
     /// ([`progressive::gather_sweeps`]). None (the default) where they are
     /// not (a stored F's columns).
-    fn reciprocal_rows(&self, _batch: &[usize]) -> Option<Vec<(Vec<(u32, f32)>, f32)>> {
+    fn reciprocal_rows(&self, _batch: &[usize]) -> Option<SummedRows> {
         None
     }
 }
+
+/// Rows of coefficients with their sums: (row, Σ of its values).
+pub type SummedRows = Vec<(Vec<(u32, f32)>, f32)>;
 
 /// Shooting coefficient Sᵢⱼ = Fᵢⱼ Aᵢ / Aⱼ from form factor `f` = Fᵢⱼ by
 /// reciprocity (Aᵢ Fᵢⱼ = Aⱼ Fⱼᵢ): one expression wherever a shooting row

@@ -541,7 +541,7 @@ mod tests {
                 .map(|(j, f)| (j, crate::solve::reciprocal(f, i, j as usize, &self.area)));
             (s.collect(), sum)
         }
-        fn reciprocal_rows(&self, batch: &[usize]) -> Option<Vec<(Vec<(u32, f32)>, f32)>> {
+        fn reciprocal_rows(&self, batch: &[usize]) -> Option<crate::solve::SummedRows> {
             let rows = batch.iter().map(|&i| {
                 let r = self.made(i);
                 let sum = r.iter().map(|e| e.1).sum();
