@@ -352,11 +352,14 @@ impl<'a> Resolve<'a> {
         // cell: its side and its cell's patch are looked up once per run.
         let mut side: Option<(u32, bool)> = None;
         let mut memo: Option<(u32, i64, i64, u32)> = None;
+        // Counted here and added once: kept in registers, not in `self`
+        // (the sums' stores could alias them).
+        self.stats.rays += pixels.len() as u64;
+        let mut escaped = 0u64;
         for (k, px) in pixels.iter().enumerate() {
-            self.stats.rays += 1;
             let tri = px.tri;
             if tri == u32::MAX {
-                self.stats.escaped += 1;
+                escaped += 1;
                 continue;
             }
             let seen = match side {
@@ -403,6 +406,7 @@ impl<'a> Resolve<'a> {
             }
             self.sums[j as usize] += weights[k];
         }
+        self.stats.escaped += escaped;
     }
 
     /// The row, sorted by column, and its counters. Where the patches seen
