@@ -139,8 +139,8 @@ const ENTRY_BYTES: usize = std::mem::size_of::<(u32, f32)>();
 /// `/proc/meminfo`; [`CACHE_MIN_ENTRIES`] where there is none), at least
 /// [`CACHE_MIN_ENTRIES`]. A fixed 256 MB held 11 % of the furnace's rows at
 /// its default density (20,184 patches, 290 M entries), and its patches,
-/// each shot about 8 times, cast their hemicubes again and again: 219 s,
-/// where the rows made once take 38 s (2.4 GB). What is cached changes
+/// each shot about 8 times, cast their hemicubes again and again: 189 s,
+/// where the rows made once took 36 s (2.4 GB). What is cached changes
 /// the time, never the result ([`ShotRows`]).
 fn cache_budget() -> usize {
     available_memory().map_or(CACHE_MIN_ENTRIES, |bytes| {
@@ -167,8 +167,6 @@ pub const BATCH: usize = 16;
 /// that a serial solve would have left for much later.
 const BATCH_FLOOR: f64 = 0.5;
 
-/// The shooting state: radiance, irradiance and unshot radiance per patch,
-/// their unshot powers ΔLᵢ·1 Aᵢ, and the structure that finds the largest.
 /// Unshot power ΔLᵢ Aᵢ (summed over the channels) of unshot radiance
 /// `unshot` on a patch of `area`.
 fn power_of(unshot: Vec3, area: f32) -> f64 {
@@ -201,6 +199,8 @@ type Shot<'r> = (&'r [(u32, f32)], Vec3, Option<usize>);
 /// result does not depend on the thread count.
 const SHOT_BLOCK: usize = 2048;
 
+/// The shooting state: radiance, irradiance and unshot radiance per patch,
+/// their unshot powers ΔLᵢ·1 Aᵢ, and the structure that finds the largest.
 struct Shooting<'a> {
     sys: &'a System<'a>,
     radiance: Vec<Vec3>,
