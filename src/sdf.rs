@@ -17,8 +17,8 @@
 //!   casts one ray along that face's normal, and votes where the ray
 //!   meets the back of a one-sided face (it is enclosed over the face: a
 //!   solid without a bottom face standing on a floor). Elsewhere (nearest
-//!   on an edge or a vertex, or on a double-sided material) by ray voting against one-sided faces, as
-//!   Unreal's mesh distance fields do: rays from the voxel's centre in a
+//!   on an edge or a vertex, or on a double-sided material) by ray voting
+//!   against one-sided faces, as Unreal's mesh distance fields do: rays from the voxel's centre in a
 //!   fixed spherical Fibonacci set; a ray that first meets the back of a
 //!   one-sided face votes *inside*, one that meets a front face, a
 //!   double-sided material's face, or nothing votes *outside*; more than

@@ -157,6 +157,7 @@ const WORKERS: usize = 4;
 /// served (if given) or the listener fails.
 fn answer(server: &tiny_http::Server, dir: &Path, limit: Option<u64>) {
     let served = std::sync::atomic::AtomicU64::new(0);
+    let stop_all = || (0..WORKERS).for_each(|_| server.unblock());
     std::thread::scope(|scope| {
         for _ in 0..WORKERS {
             scope.spawn(|| {
@@ -164,7 +165,7 @@ fn answer(server: &tiny_http::Server, dir: &Path, limit: Option<u64>) {
                 // either way every worker stops.
                 loop {
                     let Ok(request) = server.recv() else {
-                        (0..WORKERS).for_each(|_| server.unblock());
+                        stop_all();
                         break;
                     };
                     let response = match resolve(dir, request.url()) {
@@ -179,7 +180,7 @@ fn answer(server: &tiny_http::Server, dir: &Path, limit: Option<u64>) {
                     let _ = request.respond(response);
                     let n = served.fetch_add(1, std::sync::atomic::Ordering::SeqCst) + 1;
                     if limit == Some(n) {
-                        (0..WORKERS).for_each(|_| server.unblock());
+                        stop_all();
                     }
                 }
             });

@@ -54,8 +54,8 @@ impl FormFactors {
     /// the thread count); `advance` is called once per row. The rows are
     /// made [`ROW_CHUNK`] at a time and moved into the matrix, so they are
     /// never all held beside it: the furnace's nearly dense F (290 M
-    /// entries) peaked at 5.7 GB with every row held, rows (2.3 GB) and
-    /// matrix (3.5 GB) at once.
+    /// entries) peaked at 4.7–5.7 GB with every row held beside the matrix
+    /// (rows 2.3 GB, CSR 3.5 GB), 3.7 GB now.
     pub fn from_row_fn(
         n: usize,
         row: impl Fn(usize) -> (Vec<(u32, f32)>, FormFactorStats) + Sync,

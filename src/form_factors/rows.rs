@@ -77,16 +77,17 @@ impl<'a> OnDemand<'a> {
         batch.par_iter().map(|&i| self.row(i)).collect()
     }
 
-    /// Sᵢⱼ = Fᵢⱼ Aᵢ / Aⱼ and Σⱼ Fᵢⱼ from row i of F.
-    fn shooting(&self, i: usize, row: Vec<(u32, f32)>) -> (Vec<(u32, f32)>, f32) {
+    /// Rows of F for `batch` ([`OnDemand::rows`]), each with Σⱼ Fᵢⱼ.
+    fn summed_rows(&self, batch: &[usize]) -> crate::solve::SummedRows {
+        self.rows(batch).into_iter().map(summed).collect()
+    }
+
+    /// Sᵢⱼ = Fᵢⱼ Aᵢ / Aⱼ from row i of F and its sum, which is kept.
+    fn shooting(&self, i: usize, (row, sum): (Vec<(u32, f32)>, f32)) -> (Vec<(u32, f32)>, f32) {
         let area = &self.surfaces.patches.area;
-        let sum = row.iter().map(|e| e.1).sum();
-        (
-            row.into_iter()
-                .map(|(j, f)| (j, crate::solve::reciprocal(f, i, j as usize, area)))
-                .collect(),
-            sum,
-        )
+        let s = row.into_iter();
+        let s = s.map(|(j, f)| (j, crate::solve::reciprocal(f, i, j as usize, area)));
+        (s.collect(), sum)
     }
 
     /// Counters of every row computed so far.
@@ -126,10 +127,10 @@ impl GatheringRows for OnDemand<'_> {
 
 impl ShootingRows for OnDemand<'_> {
     fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32) {
-        self.shooting(i, self.row(i))
+        self.shooting(i, summed(self.row(i)))
     }
     fn shooting_rows(&self, batch: &[usize]) -> Vec<(Vec<(u32, f32)>, f32)> {
-        let rows = self.rows(batch);
+        let rows = self.summed_rows(batch);
         batch
             .iter()
             .zip(rows)
@@ -137,16 +138,14 @@ impl ShootingRows for OnDemand<'_> {
             .collect()
     }
     fn reciprocal_rows(&self, batch: &[usize]) -> Option<crate::solve::SummedRows> {
-        let rows = self.rows(batch);
-        Some(
-            rows.into_iter()
-                .map(|r| {
-                    let sum = r.iter().map(|e| e.1).sum();
-                    (r, sum)
-                })
-                .collect(),
-        )
+        Some(self.summed_rows(batch))
     }
+}
+
+/// A row with the sum of its values.
+fn summed(row: Vec<(u32, f32)>) -> (Vec<(u32, f32)>, f32) {
+    let sum = row.iter().map(|e| e.1).sum();
+    (row, sum)
 }
 
 /// Columns of a stored F (ΔHⱼ = Fⱼᵢ ΔLᵢ), for progressive refinement on
