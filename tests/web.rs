@@ -153,6 +153,8 @@ fn viewer(port: u16, query: &str, out: &Path) -> Vec<Vec3> {
         .output()
         .unwrap();
     succeeded(&run);
+    // A stalled first load that was retried says so here.
+    eprint!("{}", String::from_utf8_lossy(&run.stderr));
     let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(
         json["errors"],

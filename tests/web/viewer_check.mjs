@@ -22,25 +22,49 @@ const browser = await puppeteer.launch({
   args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
 });
 const errors = [];
-try {
+
+// Opens the page in a new tab and waits for the viewer's first frame
+// within `timeout` ms; the tab, or an error naming the requests still in
+// flight.
+async function open(timeout) {
   const tab = await browser.newPage();
-  tab.on('pageerror', (e) => errors.push(String(e)));
-  tab.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  tab.on('requestfailed', (r) => errors.push(`request failed: ${r.url()}`));
-  tab.on('response', (r) => { if (r.status() >= 400) errors.push(`${r.status()} ${r.url()}`); });
-  // Requests in flight, named if the page times out.
+  const seen = [];
+  tab.on('pageerror', (e) => seen.push(String(e)));
+  tab.on('console', (m) => { if (m.type() === 'error') seen.push(m.text()); });
+  tab.on('requestfailed', (r) => seen.push(`request failed: ${r.url()}`));
+  tab.on('response', (r) => { if (r.status() >= 400) seen.push(`${r.status()} ${r.url()}`); });
   const started = Date.now();
   const pending = new Map();
   tab.on('request', (r) => pending.set(r, Date.now()));
   tab.on('requestfinished', (r) => pending.delete(r));
   tab.on('requestfailed', (r) => pending.delete(r));
   try {
-    await tab.goto(url, { waitUntil: 'domcontentloaded', timeout: 120000 });
-    await tab.waitForFunction('window.radbake && (window.radbake.ready || window.radbake.error)', { timeout: 120000 });
+    await tab.goto(url, { waitUntil: 'domcontentloaded', timeout });
+    await tab.waitForFunction('window.radbake && (window.radbake.ready || window.radbake.error)', { timeout });
   } catch (e) {
     const open = [...pending].map(([r, t]) => `${r.url()} (since ${((t - started) / 1000).toFixed(1)} s)`);
+    await tab.close();
     throw new Error(`${e.message}; requests still open: ${open.length ? open.join(', ') : 'none'}`);
   }
+  return { tab, seen };
+}
+
+try {
+  // A fresh page's load has been seen to stall for good with one module
+  // request of `radbake serve` left unanswered (CI at stop 37; here 2 of 4
+  // runs of the whole file at stop 38, never when the page was loaded
+  // alone; cause not found). A stalled first load is said on stderr (the
+  // test prints it) and tried once more in a new tab; a second stall
+  // fails.
+  let page;
+  try {
+    page = await open(60000);
+  } catch (e) {
+    console.error(`viewer_check: first load stalled, retrying in a new tab: ${e.message}`);
+    page = await open(60000);
+  }
+  const { tab, seen } = page;
+  errors.push(...seen);
   const state = await tab.evaluate(() => ({ ...window.radbake, three: window.__THREE__ }));
   if (state.error) errors.push(state.error);
   const data = await tab.evaluate(() => document.getElementById('view').toDataURL('image/png'));
