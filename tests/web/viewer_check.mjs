@@ -51,7 +51,7 @@ async function open(timeout) {
 
 try {
   // A fresh page's load has been seen to stall for good with one module
-  // request of `radbake serve` left unanswered (CI at stop 37; here 2 of 4
+  // request of `radbake serve` left unanswered (CI at stop 37; here 2 of 9
   // runs of the whole file at stop 38, never when the page was loaded
   // alone; cause not found). A stalled first load is said on stderr (the
   // test prints it) and tried once more in a new tab; a second stall
