@@ -11,7 +11,9 @@
 //! pixel's delta form factor: so the GPU's rows are the CPU's rows wherever
 //! the two rasterisers cover the same pixels with the same triangle.
 
-use super::hemicube::{cameras, Cameras, Hemicube, Pixel, Resolve, RowBatches, Rows, EMPTY};
+use super::hemicube::{
+    cameras, Cameras, CellPatches, Hemicube, Pixel, Resolve, RowBatches, Rows, EMPTY,
+};
 use super::raycast::Surfaces;
 use super::FormFactorStats;
 use crate::geometry::Geometry;
@@ -276,7 +278,13 @@ impl GpuHemicubes {
 }
 
 impl RowBatches for GpuHemicubes {
-    fn rows(&self, s: &Surfaces, cube: &Hemicube, patches: &[usize]) -> Result<Rows> {
+    fn rows(
+        &self,
+        s: &Surfaces,
+        cube: &Hemicube,
+        cells: &CellPatches,
+        patches: &[usize],
+    ) -> Result<Rows> {
         if cube.n != self.n {
             bail!(
                 "GPU hemicubes were built for {} pixels, asked for {}",
@@ -294,7 +302,7 @@ impl RowBatches for GpuHemicubes {
                     let Some(c) = c else {
                         return (Vec::new(), FormFactorStats::default());
                     };
-                    let mut resolve = Resolve::new(s, cube, c.eye);
+                    let mut resolve = Resolve::new(s, cube, cells, c.eye);
                     let mut buf = vec![EMPTY; (n * n) as usize];
                     for (f, face) in c.faces.iter().enumerate() {
                         let pixels = (n * if face.side { n / 2 } else { n }) as usize;

@@ -16,6 +16,7 @@
 use super::raycast::{Landing, Surfaces};
 use super::{FormFactorStats, FormFactors};
 use crate::sampling::{frame, offset_ray_origin};
+use crate::texels::EMPTY_ENTRY;
 use glam::{Vec2, Vec3};
 
 /// Delta form factors of one hemicube resolution.
@@ -313,6 +314,69 @@ pub(crate) fn cameras(s: &Surfaces, i: usize) -> Option<Cameras> {
     })
 }
 
+/// Every lightmap cell's patch, for the hemicube's per-pixel landing: per
+/// page cell the patch of its texel in the low 32 bits ([`SPLIT`] where
+/// burial planes split the texel, so the point decides) and the texel's
+/// owner ([`crate::texels::Texels::owner`]) in the high ones, or
+/// [`EMPTY_ENTRY`]. One load lands a pixel where the atlas's index, the
+/// split bits and the texel's patch took three dependent ones: a
+/// furnace hemicube's pixels each show a different cell (4.5 texels per
+/// pixel at the defaults), so those loads were most of its time.
+pub struct CellPatches {
+    /// Every page's cells, one page after another.
+    entries: Vec<u64>,
+    width: u32,
+    height: u32,
+}
+
+/// A cell whose texel burial planes split: [`Surfaces::land`] decides.
+const SPLIT: u32 = u32::MAX;
+
+impl CellPatches {
+    /// The map of `s`'s atlas.
+    pub fn new(s: &Surfaces) -> CellPatches {
+        let tx = s.texels;
+        let entries = (tx.index.iter().flatten())
+            .map(|&e| {
+                if e == EMPTY_ENTRY {
+                    return e;
+                }
+                let texel = e as u32;
+                let patch = if s.burial.split(texel as usize) {
+                    SPLIT
+                } else {
+                    s.patches.of_texel[texel as usize].0
+                };
+                (e & !u64::from(u32::MAX)) | u64::from(patch)
+            })
+            .collect();
+        CellPatches {
+            entries,
+            width: tx.width,
+            height: tx.height,
+        }
+    }
+
+    /// Where cell (`x`, `y`) of `page` is in [`CellPatches::entries`], if
+    /// on the page.
+    #[inline(always)]
+    fn slot(&self, page: u32, x: i64, y: i64) -> Option<usize> {
+        let (w, h) = (self.width as i64, self.height as i64);
+        ((0..w).contains(&x) && (0..h).contains(&y))
+            .then(|| ((page as i64 * h + y) * w + x) as usize)
+    }
+}
+
+/// Pixels landed together: their cells' entries are loaded in one pass
+/// with no branch between the loads, so that their cache misses overlap.
+const BATCH: usize = 256;
+
+/// What the first pass found for a pixel (besides a cell to load).
+const ESCAPED: usize = usize::MAX;
+const BACK_FACE: usize = usize::MAX - 1;
+/// Off the page or on a triangle without a chart: [`Surfaces::land`].
+const LAND: usize = usize::MAX - 2;
+
 /// Turns rasterised faces into a row: every pixel lands on the patch of
 /// the lightmap texel it shows and adds its delta form factor there.
 /// Shared by the CPU rasteriser and the GPU's ([`super::gpu_hemicube`]),
@@ -320,6 +384,7 @@ pub(crate) fn cameras(s: &Surfaces, i: usize) -> Option<Cameras> {
 pub(crate) struct Resolve<'a> {
     s: &'a Surfaces<'a>,
     cube: &'a Hemicube,
+    cells: &'a CellPatches,
     eye: Vec3,
     /// Σ ΔF per patch, dense, and the patches touched (in first-seen order).
     sums: Vec<f32>,
@@ -328,10 +393,16 @@ pub(crate) struct Resolve<'a> {
 }
 
 impl<'a> Resolve<'a> {
-    pub(crate) fn new(s: &'a Surfaces<'a>, cube: &'a Hemicube, eye: Vec3) -> Self {
+    pub(crate) fn new(
+        s: &'a Surfaces<'a>,
+        cube: &'a Hemicube,
+        cells: &'a CellPatches,
+        eye: Vec3,
+    ) -> Self {
         Resolve {
             s,
             cube,
+            cells,
             eye,
             sums: vec![0.0; s.patches.len()],
             touched: Vec::new(),
@@ -340,66 +411,122 @@ impl<'a> Resolve<'a> {
     }
 
     /// Adds one face's pixels (`n` × rows, rows along `up` from its lower
-    /// edge).
+    /// edge), [`BATCH`] at a time: each pixel's cell (or what it is
+    /// instead), then the cells' entries, then the sums, in pixel order.
     pub(crate) fn face(&mut self, face: &Face, pixels: &[Pixel]) {
-        let (s, eye) = (self.s, self.eye);
         let weights = if face.side {
             &self.cube.side
         } else {
             &self.cube.top
         };
-        // Runs of pixels show one triangle, and runs of those one lightmap
-        // cell: its side and its cell's patch are looked up once per run.
-        let mut side: Option<(u32, bool)> = None;
-        let mut memo: Option<(u32, i64, i64, u32)> = None;
-        // Counted here and added once: kept in registers, not in `self`
-        // (the sums' stores could alias them).
         self.stats.rays += pixels.len() as u64;
-        let mut escaped = 0u64;
-        for (k, px) in pixels.iter().enumerate() {
+        let mut slots = [0usize; BATCH];
+        let mut owners = [0u32; BATCH];
+        let mut entries = [0u64; BATCH];
+        for (b, chunk) in pixels.chunks(BATCH).enumerate() {
+            self.cells_of(chunk, &mut slots, &mut owners);
+            for k in 0..chunk.len() {
+                let slot = slots[k];
+                entries[k] = if slot < LAND {
+                    self.cells.entries[slot]
+                } else {
+                    EMPTY_ENTRY
+                };
+            }
+            let weights = &weights[b * BATCH..b * BATCH + chunk.len()];
+            self.add(face, chunk, &slots, &owners, &entries, weights);
+        }
+    }
+
+    /// Each pixel's slot in the cell map and its triangle's owner, or
+    /// [`ESCAPED`], [`BACK_FACE`] or [`LAND`].
+    #[inline(always)]
+    fn cells_of(&self, chunk: &[Pixel], slots: &mut [usize; BATCH], owners: &mut [u32; BATCH]) {
+        let (s, eye) = (self.s, self.eye);
+        let g = s.geometry;
+        // Runs of pixels show one triangle: its side, page and owner are
+        // found once per run.
+        let mut run: Option<(u32, bool, u32, u32)> = None;
+        for (k, px) in chunk.iter().enumerate() {
             let tri = px.tri;
             if tri == u32::MAX {
-                escaped += 1;
+                slots[k] = ESCAPED;
                 continue;
             }
-            let seen = match side {
-                Some((t, seen)) if t == tri => seen,
+            let (seen, page, owner) = match run {
+                Some((t, seen, page, owner)) if t == tri => (seen, page, owner),
                 _ => {
+                    let t = tri as usize;
                     let seen = s.seen_from(tri, eye);
-                    side = Some((tri, seen));
-                    seen
+                    let owner = if g.chart[t] == u32::MAX {
+                        u32::MAX
+                    } else {
+                        s.texels.owner(g.instance[t], g.chart[t])
+                    };
+                    run = Some((tri, seen, g.page[t], owner));
+                    (seen, g.page[t], owner)
                 }
             };
             if !seen {
-                self.stats.back_faces += 1;
+                slots[k] = BACK_FACE;
                 continue;
             }
-            // The visible point, from the pixel's interpolated weights.
-            let uv = s.geometry.uv_lm_at(tri, px.u, px.v);
-            let (cx, cy) = (floor(uv.x), floor(uv.y));
-            let j = match memo {
-                Some((t, x, y, j)) if (t, x, y) == (tri, cx, cy) => j,
-                _ => match s.land_cell(tri, cx, cy) {
-                    Some(tx) => {
-                        let j = s.patches.of_texel[tx as usize].0;
-                        memo = Some((tri, cx, cy, j));
-                        j
-                    }
-                    None => {
-                        let p0 = s.geometry.p_ws[tri as usize][0];
-                        match s.land(tri, px.u, px.v, (p0 - eye).normalize_or(face.forward)) {
-                            Landing::Texel(tx) => s.patches.of_texel[tx as usize].0,
-                            Landing::BackFace => {
-                                self.stats.back_faces += 1;
-                                continue;
-                            }
-                            _ => {
-                                self.stats.unmapped += 1;
-                                continue;
-                            }
+            let uv = g.uv_lm_at(tri, px.u, px.v);
+            slots[k] = match (owner != u32::MAX)
+                .then(|| self.cells.slot(page, floor(uv.x), floor(uv.y)))
+                .flatten()
+            {
+                Some(slot) => slot,
+                None => LAND,
+            };
+            owners[k] = owner;
+        }
+    }
+
+    /// Adds the chunk's pixels to the sums, in order: a pixel whose cell
+    /// is its surface's and unsplit adds to that cell's patch; the rest
+    /// land by [`Surfaces::land`] (a cell of another chart, a split one).
+    #[inline(always)]
+    fn add(
+        &mut self,
+        face: &Face,
+        chunk: &[Pixel],
+        slots: &[usize; BATCH],
+        owners: &[u32; BATCH],
+        entries: &[u64; BATCH],
+        weights: &[f32],
+    ) {
+        let (s, eye) = (self.s, self.eye);
+        let mut escaped = 0u64;
+        for (k, px) in chunk.iter().enumerate() {
+            let e = entries[k];
+            let j = match slots[k] {
+                ESCAPED => {
+                    escaped += 1;
+                    continue;
+                }
+                BACK_FACE => {
+                    self.stats.back_faces += 1;
+                    continue;
+                }
+                _ if e != EMPTY_ENTRY && (e >> 32) as u32 == owners[k] && e as u32 != SPLIT => {
+                    e as u32
+                }
+                _ => {
+                    let p0 = s.geometry.p_ws[px.tri as usize][0];
+                    let dir = (p0 - eye).normalize_or(face.forward);
+                    match s.land(px.tri, px.u, px.v, dir) {
+                        Landing::Texel(tx) => s.patches.of_texel[tx as usize].0,
+                        Landing::BackFace => {
+                            self.stats.back_faces += 1;
+                            continue;
+                        }
+                        _ => {
+                            self.stats.unmapped += 1;
+                            continue;
                         }
                     }
-                },
+                }
             };
             if self.sums[j as usize] == 0.0 {
                 self.touched.push(j);
@@ -432,12 +559,17 @@ impl<'a> Resolve<'a> {
 }
 
 /// Row i of F by the hemicube, sorted by column.
-pub fn row(s: &Surfaces, cube: &Hemicube, i: usize) -> (Vec<(u32, f32)>, FormFactorStats) {
+pub fn row(
+    s: &Surfaces,
+    cube: &Hemicube,
+    cells: &CellPatches,
+    i: usize,
+) -> (Vec<(u32, f32)>, FormFactorStats) {
     let Some(cams) = cameras(s, i) else {
         return (Vec::new(), FormFactorStats::default());
     };
     let n = cube.n;
-    let mut resolve = Resolve::new(s, cube, cams.eye);
+    let mut resolve = Resolve::new(s, cube, cells, cams.eye);
     let mut buf = vec![EMPTY; (n * n) as usize];
     for face in &cams.faces {
         let rows = if face.side { n / 2 } else { n };
@@ -459,7 +591,13 @@ pub trait RowBatches: Sync {
     ///
     /// # Errors
     /// The device failed; the caller computes the rows on the CPU.
-    fn rows(&self, s: &Surfaces, cube: &Hemicube, patches: &[usize]) -> anyhow::Result<Rows>;
+    fn rows(
+        &self,
+        s: &Surfaces,
+        cube: &Hemicube,
+        cells: &CellPatches,
+        patches: &[usize],
+    ) -> anyhow::Result<Rows>;
     /// The device, for the bake's warning.
     fn describe(&self) -> String;
 }
@@ -491,11 +629,11 @@ pub fn compute_on(
     n: u32,
     advance: &(dyn Fn(u64) + Sync),
 ) -> anyhow::Result<FormFactors> {
-    let cube = Hemicube::new(n);
+    let (cube, cells) = (Hemicube::new(n), CellPatches::new(s));
     let patches: Vec<usize> = (0..s.patches.len()).collect();
     let mut results = Vec::with_capacity(patches.len());
     for chunk in patches.chunks(4096) {
-        results.extend(gpu.rows(s, &cube, chunk)?);
+        results.extend(gpu.rows(s, &cube, &cells, chunk)?);
         advance(chunk.len() as u64);
     }
     Ok(FormFactors::from_results(patches.len(), results))
@@ -503,8 +641,8 @@ pub fn compute_on(
 
 /// Every row of F by the hemicube at resolution `n`.
 pub fn compute(s: &Surfaces, n: u32, advance: &(dyn Fn(u64) + Sync)) -> FormFactors {
-    let cube = Hemicube::new(n);
-    FormFactors::from_row_fn(s.patches.len(), |i| row(s, &cube, i), advance)
+    let (cube, cells) = (Hemicube::new(n), CellPatches::new(s));
+    FormFactors::from_row_fn(s.patches.len(), |i| row(s, &cube, &cells, i), advance)
 }
 
 #[cfg(test)]

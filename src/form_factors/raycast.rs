@@ -157,20 +157,6 @@ impl Surfaces<'_> {
             || self.scene.materials[g.material[t] as usize].double_sided
     }
 
-    /// The texel every point of lightmap cell (`x`, `y`) on triangle `tri`
-    /// lands on, where that does not depend on the point (the cell is the
-    /// triangle's chart's and no burial plane splits it); None where
-    /// [`Surfaces::land`] must look at the point. For hits seen from the
-    /// front ([`Surfaces::seen_from`]).
-    #[inline]
-    pub fn land_cell(&self, tri: u32, x: i64, y: i64) -> Option<u32> {
-        let g = self.geometry;
-        let t = tri as usize;
-        self.texels
-            .cell(g.page[t], x, y, g.instance[t], g.chart[t])
-            .filter(|&texel| !self.burial.split(texel as usize))
-    }
-
     /// The texel at barycentrics (u, v) of triangle `tri`, reached along `dir`.
     pub fn land(&self, tri: u32, u: f32, v: f32, dir: Vec3) -> Landing {
         let g = self.geometry;

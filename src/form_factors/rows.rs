@@ -19,7 +19,7 @@ pub struct OnDemand<'a> {
     method: FormFactorMethod,
     rays_per_patch: u32,
     seed: u64,
-    cube: Option<hemicube::Hemicube>,
+    cube: Option<(hemicube::Hemicube, hemicube::CellPatches)>,
     stats: Mutex<FormFactorStats>,
     /// Hemicubes rendered on the GPU, a batch of rows per pass; dropped
     /// (and the error kept for the bake's warnings) if it fails.
@@ -35,8 +35,10 @@ impl<'a> OnDemand<'a> {
             method: config.form_factors,
             rays_per_patch: config.rays_per_patch,
             seed: config.seed,
-            cube: (config.form_factors == FormFactorMethod::Hemicube)
-                .then(|| hemicube::Hemicube::new(config.hemicube_resolution)),
+            cube: (config.form_factors == FormFactorMethod::Hemicube).then(|| {
+                let cube = hemicube::Hemicube::new(config.hemicube_resolution);
+                (cube, hemicube::CellPatches::new(surfaces))
+            }),
             stats: Mutex::new(FormFactorStats::default()),
             gpu: None,
             gpu_failed: Mutex::new(None),
@@ -59,8 +61,8 @@ impl<'a> OnDemand<'a> {
     fn rows(&self, batch: &[usize]) -> Vec<Vec<(u32, f32)>> {
         use rayon::prelude::*;
         let working = self.gpu_failed.lock().is_ok_and(|e| e.is_none());
-        if let (Some(gpu), Some(cube), true) = (&self.gpu, &self.cube, working) {
-            match gpu.rows(self.surfaces, cube, batch) {
+        if let (Some(gpu), Some((cube, cells)), true) = (&self.gpu, &self.cube, working) {
+            match gpu.rows(self.surfaces, cube, cells, batch) {
                 Ok(rows) => {
                     if let Ok(mut s) = self.stats.lock() {
                         rows.iter().for_each(|r| s.add(&r.1));
@@ -110,7 +112,9 @@ impl OnDemand<'_> {
     /// (not added to [`OnDemand::stats`]).
     pub fn counted(&self, i: usize) -> (Vec<(u32, f32)>, FormFactorStats) {
         match (&self.cube, self.method) {
-            (Some(cube), FormFactorMethod::Hemicube) => hemicube::row(self.surfaces, cube, i),
+            (Some((cube, cells)), FormFactorMethod::Hemicube) => {
+                hemicube::row(self.surfaces, cube, cells, i)
+            }
             _ => raycast::row(self.surfaces, i, self.rays_per_patch, self.seed),
         }
     }
