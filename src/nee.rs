@@ -33,14 +33,14 @@
 //! density is not 1 / Aⱼ).
 
 use crate::form_factors::raycast::Surfaces;
+use crate::form_factors::Csr;
 use crate::sampling::Stream;
 use glam::{Vec2, Vec3};
-use nalgebra_sparse::CsrMatrix;
 
 /// The lights of every patch: row i of F with a cumulative distribution
 /// over its entries.
 pub struct PatchLights<'a> {
-    f: &'a CsrMatrix<f32>,
+    f: &'a Csr,
     /// Per entry of `f` (same layout): the cumulative probability within
     /// its row, 1 at the row's last chosen entry; an entry left out has its
     /// predecessor's value (probability 0).
@@ -65,7 +65,7 @@ pub struct LightSample {
 impl<'a> PatchLights<'a> {
     /// Lights for every patch of `s` over the form factors `f`, with
     /// `radiance` the outgoing radiance a gather ray reads per texel.
-    pub fn build(s: &Surfaces, f: &'a CsrMatrix<f32>, radiance: &[Vec3]) -> PatchLights<'a> {
+    pub fn build(s: &Surfaces, f: &'a Csr, radiance: &[Vec3]) -> PatchLights<'a> {
         let (centre, radius) = spheres(s);
         let usable = usable(s);
         let lum: Vec<f32> = patch_radiance(s, radiance)
@@ -81,7 +81,7 @@ impl<'a> PatchLights<'a> {
             let range = offsets[i]..offsets[i + 1];
             let mut total = 0.0f64;
             for k in range.clone() {
-                let j = cols[k];
+                let j = cols[k] as usize;
                 let far = centre[i].distance(centre[j]) >= radius[i] + 2.0 * radius[j];
                 if j != i && far && usable[j] && lum[j] > 0.0 && vals[k] > 0.0 {
                     total += (point_factor(s, i, j) * lum[j]) as f64;
@@ -118,7 +118,7 @@ impl<'a> PatchLights<'a> {
     #[inline]
     fn probability(&self, i: usize, j: usize) -> f32 {
         let (start, end) = (self.f.row_offsets()[i], self.f.row_offsets()[i + 1]);
-        let Ok(k) = self.f.col_indices()[start..end].binary_search(&j) else {
+        let Ok(k) = self.f.col_indices()[start..end].binary_search(&(j as u32)) else {
             return 0.0;
         };
         let lo = if k == 0 { 0.0 } else { self.cdf[start + k - 1] };
@@ -148,7 +148,7 @@ impl<'a> PatchLights<'a> {
         if p <= 0.0 {
             return None;
         }
-        let j = self.f.col_indices()[start + k];
+        let j = self.f.col_indices()[start + k] as usize;
         let mut x = ((u.x - lo) / p).clamp(0.0, 1.0) * s.patches.area[j];
         let texels = s.patches.texels_of(j);
         let mut pick = texels[texels.len() - 1];

@@ -10,13 +10,14 @@
 //! closed forms used by the tests.
 
 pub mod analytic;
+mod csr;
 #[cfg(feature = "gpu")]
 pub mod gpu_hemicube;
 pub mod hemicube;
 pub mod raycast;
 pub mod rows;
 
-use nalgebra_sparse::CsrMatrix;
+pub use csr::Csr;
 
 /// Counters of a form-factor computation.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -35,7 +36,7 @@ pub struct FormFactorStats {
 #[derive(Clone, Debug)]
 pub struct FormFactors {
     /// F in CSR form, f32 values.
-    pub matrix: CsrMatrix<f32>,
+    pub matrix: Csr,
     /// Counters.
     pub stats: FormFactorStats,
 }
@@ -89,10 +90,7 @@ impl FormFactors {
 
     /// Σⱼ Fᵢⱼ for every row.
     pub fn row_sums(&self) -> Vec<f32> {
-        self.matrix
-            .row_iter()
-            .map(|r| r.values().iter().sum())
-            .collect()
+        self.matrix.rows().map(|r| r.1.iter().sum()).collect()
     }
 
     /// Non-zeros of F.
@@ -108,7 +106,7 @@ const ROW_CHUNK: usize = 4096;
 struct CsrBuilder {
     n: usize,
     offsets: Vec<usize>,
-    cols: Vec<usize>,
+    cols: Vec<u32>,
     vals: Vec<f32>,
     stats: FormFactorStats,
 }
@@ -130,16 +128,14 @@ impl CsrBuilder {
     fn extend(&mut self, rows: impl IntoIterator<Item = (Vec<(u32, f32)>, FormFactorStats)>) {
         for (row, st) in rows {
             self.stats.add(&st);
-            self.cols.extend(row.iter().map(|e| e.0 as usize));
+            self.cols.extend(row.iter().map(|e| e.0));
             self.vals.extend(row.iter().map(|e| e.1));
             self.offsets.push(self.cols.len());
         }
     }
 
     fn finish(self) -> FormFactors {
-        let matrix =
-            CsrMatrix::try_from_csr_data(self.n, self.n, self.offsets, self.cols, self.vals)
-                .expect("rows are built sorted and in range");
+        let matrix = Csr::from_parts(self.n, self.offsets, self.cols, self.vals);
         FormFactors {
             matrix,
             stats: self.stats,

@@ -8,7 +8,6 @@ use super::raycast::{self, Surfaces};
 use super::{hemicube, FormFactorStats, FormFactors};
 use crate::config::{BakeConfig, FormFactorMethod};
 use crate::solve::{GatheringRows, ShootingRows};
-use nalgebra_sparse::CsrMatrix;
 use std::sync::Mutex;
 
 /// Rows of F computed from the shooter when asked, for progressive
@@ -155,7 +154,7 @@ fn summed(row: Vec<(u32, f32)>) -> (Vec<(u32, f32)>, f32) {
 /// Columns of a stored F (ΔHⱼ = Fⱼᵢ ΔLᵢ), for progressive refinement on
 /// exactly the matrix the other solvers use.
 pub struct StoredColumns {
-    transposed: CsrMatrix<f32>,
+    transposed: super::Csr,
     row_sums: Vec<f32>,
 }
 
@@ -171,13 +170,9 @@ impl StoredColumns {
 
 impl ShootingRows for StoredColumns {
     fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32) {
-        let r = self.transposed.row(i);
+        let (cols, vals) = self.transposed.row(i);
         (
-            r.col_indices()
-                .iter()
-                .zip(r.values())
-                .map(|(&j, &v)| (j as u32, v))
-                .collect(),
+            cols.iter().zip(vals).map(|(&j, &v)| (j, v)).collect(),
             self.row_sums[i],
         )
     }

@@ -4,12 +4,12 @@
 
 use super::jacobi::gather;
 use super::{Solution, System};
+use crate::form_factors::Csr;
 use glam::Vec3;
 use nalgebra::DMatrix;
-use nalgebra_sparse::CsrMatrix;
 
 /// Solves exactly, or returns `None` when the matrix is singular.
-pub fn solve(f: &CsrMatrix<f32>, sys: &System) -> Option<Solution> {
+pub fn solve(f: &Csr, sys: &System) -> Option<Solution> {
     let n = sys.len();
     let rhs = sys.initial_radiance();
     let mut radiance = vec![Vec3::ZERO; n];
@@ -42,13 +42,13 @@ pub fn solve(f: &CsrMatrix<f32>, sys: &System) -> Option<Solution> {
 }
 
 /// I − diag(ρ_c) F as a dense f64 matrix.
-fn factor(f: &CsrMatrix<f32>, sys: &System, c: usize) -> DMatrix<f64> {
+fn factor(f: &Csr, sys: &System, c: usize) -> DMatrix<f64> {
     let n = sys.len();
     let mut m = DMatrix::<f64>::identity(n, n);
-    for (i, row) in f.row_iter().enumerate() {
+    for (i, (cols, vals)) in f.rows().enumerate() {
         let rho = sys.albedo[i][c] as f64;
-        for (&j, &v) in row.col_indices().iter().zip(row.values()) {
-            m[(i, j)] -= rho * v as f64;
+        for (&j, &v) in cols.iter().zip(vals) {
+            m[(i, j as usize)] -= rho * v as f64;
         }
     }
     m

@@ -4,11 +4,11 @@
 
 use super::jacobi::{gather, relative_change};
 use super::{Solution, System};
-use nalgebra_sparse::CsrMatrix;
+use crate::form_factors::Csr;
 
 /// Solves by Gauss–Seidel until Σ|ΔL|/Σ|L| < `tolerance` or `max_iterations`.
 pub fn solve(
-    f: &CsrMatrix<f32>,
+    f: &Csr,
     sys: &System,
     tolerance: f32,
     max_iterations: u32,
@@ -25,7 +25,7 @@ pub fn solve(
         for i in 0..radiance.len() {
             let mut h = sys.direct[i];
             for k in offsets[i]..offsets[i + 1] {
-                h += radiance[cols[k]] * vals[k];
+                h += radiance[cols[k] as usize] * vals[k];
             }
             radiance[i] = sys.emission[i] + sys.albedo[i] * h;
         }

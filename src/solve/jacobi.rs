@@ -4,12 +4,12 @@
 //! Rows are summed in column order, so results do not depend on threads.
 
 use super::{Solution, System};
+use crate::form_factors::Csr;
 use glam::Vec3;
-use nalgebra_sparse::CsrMatrix;
 use rayon::prelude::*;
 
 /// y = F x (RGB), one row per task.
-pub fn spmv(f: &CsrMatrix<f32>, x: &[Vec3]) -> Vec<Vec3> {
+pub fn spmv(f: &Csr, x: &[Vec3]) -> Vec<Vec3> {
     let offsets = f.row_offsets();
     let cols = f.col_indices();
     let vals = f.values();
@@ -18,7 +18,7 @@ pub fn spmv(f: &CsrMatrix<f32>, x: &[Vec3]) -> Vec<Vec3> {
         .map(|i| {
             let mut acc = Vec3::ZERO;
             for k in offsets[i]..offsets[i + 1] {
-                acc += x[cols[k]] * vals[k];
+                acc += x[cols[k] as usize] * vals[k];
             }
             acc
         })
@@ -40,7 +40,7 @@ pub fn relative_change(a: &[Vec3], b: &[Vec3]) -> f32 {
 }
 
 /// H = D + F L for the final radiance.
-pub fn gather(f: &CsrMatrix<f32>, sys: &System, radiance: &[Vec3]) -> Vec<Vec3> {
+pub fn gather(f: &Csr, sys: &System, radiance: &[Vec3]) -> Vec<Vec3> {
     spmv(f, radiance)
         .iter()
         .zip(sys.direct)
@@ -51,7 +51,7 @@ pub fn gather(f: &CsrMatrix<f32>, sys: &System, radiance: &[Vec3]) -> Vec<Vec3> 
 /// Solves by Jacobi iteration until Σ|ΔL|/Σ|L| < `tolerance` or
 /// `max_iterations`. `advance` is called once per iteration.
 pub fn solve(
-    f: &CsrMatrix<f32>,
+    f: &Csr,
     sys: &System,
     tolerance: f32,
     max_iterations: u32,
@@ -90,8 +90,7 @@ mod tests {
     /// Two-patch enclosure with F = [[0,1],[1,0]]: L = E + ρ L_other.
     #[test]
     fn two_patch_closed_form() {
-        let f = CsrMatrix::try_from_csr_data(2, 2, vec![0, 1, 2], vec![1, 0], vec![1.0f32, 1.0])
-            .unwrap();
+        let f = Csr::from_parts(2, vec![0, 1, 2], vec![1, 0], vec![1.0f32, 1.0]);
         let e = [Vec3::ONE, Vec3::ZERO];
         let rho = [Vec3::splat(0.5), Vec3::splat(0.5)];
         let sys = System {
