@@ -50,19 +50,12 @@ async function open(timeout) {
 }
 
 try {
-  // A fresh page's load has been seen to stall for good with one module
-  // request of `radbake serve` left unanswered (CI at stop 37; here 2 of 9
-  // runs of the whole file at stop 38, never when the page was loaded
-  // alone; cause not found). A stalled first load is said on stderr (the
-  // test prints it) and tried once more in a new tab; a second stall
-  // fails.
-  let page;
-  try {
-    page = await open(60000);
-  } catch (e) {
-    console.error(`viewer_check: first load stalled, retrying in a new tab: ${e.message}`);
-    page = await open(60000);
-  }
+  // A load that stalls fails, naming the requests still open. (Loads
+  // stalled here while `radbake serve` ran on tiny_http, whose thread pool
+  // could leave a connection unanswered: src/cli/serve.rs. A stalled first
+  // load used to be tried once more in a new tab; with the cause gone, a
+  // stall is a failure again.)
+  const page = await open(120000);
   const { tab, seen } = page;
   errors.push(...seen);
   const state = await tab.evaluate(() => ({ ...window.radbake, three: window.__THREE__ }));
