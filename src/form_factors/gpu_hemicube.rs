@@ -11,9 +11,7 @@
 //! pixel's delta form factor: so the GPU's rows are the CPU's rows wherever
 //! the two rasterisers cover the same pixels with the same triangle.
 
-use super::hemicube::{
-    cameras, Cameras, CellPatches, Hemicube, Pixel, Resolve, RowBatches, Rows, EMPTY,
-};
+use super::hemicube::{cameras, Cameras, Hemicube, Pixel, Resolve, RowBatches, Rows, Setup, EMPTY};
 use super::raycast::Surfaces;
 use super::FormFactorStats;
 use crate::geometry::Geometry;
@@ -278,18 +276,12 @@ impl GpuHemicubes {
 }
 
 impl RowBatches for GpuHemicubes {
-    fn rows(
-        &self,
-        s: &Surfaces,
-        cube: &Hemicube,
-        cells: &CellPatches,
-        patches: &[usize],
-    ) -> Result<Rows> {
-        if cube.n != self.n {
+    fn rows(&self, s: &Surfaces, setup: &Setup, patches: &[usize]) -> Result<Rows> {
+        if setup.cube.n != self.n {
             bail!(
                 "GPU hemicubes were built for {} pixels, asked for {}",
                 self.n,
-                cube.n
+                setup.cube.n
             );
         }
         let mut out = Vec::with_capacity(patches.len());
@@ -302,7 +294,7 @@ impl RowBatches for GpuHemicubes {
                     let Some(c) = c else {
                         return (Vec::new(), FormFactorStats::default());
                     };
-                    let mut resolve = Resolve::new(s, cube, cells, c.eye);
+                    let mut resolve = Resolve::new(s, setup, c.eye);
                     let mut buf = vec![EMPTY; (n * n) as usize];
                     for (f, face) in c.faces.iter().enumerate() {
                         let pixels = (n * if face.side { n / 2 } else { n }) as usize;

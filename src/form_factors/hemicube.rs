@@ -367,6 +367,25 @@ impl CellPatches {
     }
 }
 
+/// What landing a patch's hemicube needs besides the scene: the delta
+/// form factors of its resolution and the atlas's cell map.
+pub struct Setup {
+    /// Delta form factors.
+    pub cube: Hemicube,
+    /// Every cell's patch.
+    pub cells: CellPatches,
+}
+
+impl Setup {
+    /// Hemicubes of resolution `n` over `s`'s atlas.
+    pub fn new(s: &Surfaces, n: u32) -> Setup {
+        Setup {
+            cube: Hemicube::new(n),
+            cells: CellPatches::new(s),
+        }
+    }
+}
+
 /// Pixels landed together: their cells' entries are loaded in one pass
 /// with no branch between the loads, so that their cache misses overlap.
 const BATCH: usize = 256;
@@ -393,16 +412,11 @@ pub(crate) struct Resolve<'a> {
 }
 
 impl<'a> Resolve<'a> {
-    pub(crate) fn new(
-        s: &'a Surfaces<'a>,
-        cube: &'a Hemicube,
-        cells: &'a CellPatches,
-        eye: Vec3,
-    ) -> Self {
+    pub(crate) fn new(s: &'a Surfaces<'a>, setup: &'a Setup, eye: Vec3) -> Self {
         Resolve {
             s,
-            cube,
-            cells,
+            cube: &setup.cube,
+            cells: &setup.cells,
             eye,
             sums: vec![0.0; s.patches.len()],
             touched: Vec::new(),
@@ -559,17 +573,12 @@ impl<'a> Resolve<'a> {
 }
 
 /// Row i of F by the hemicube, sorted by column.
-pub fn row(
-    s: &Surfaces,
-    cube: &Hemicube,
-    cells: &CellPatches,
-    i: usize,
-) -> (Vec<(u32, f32)>, FormFactorStats) {
+pub fn row(s: &Surfaces, setup: &Setup, i: usize) -> (Vec<(u32, f32)>, FormFactorStats) {
     let Some(cams) = cameras(s, i) else {
         return (Vec::new(), FormFactorStats::default());
     };
-    let n = cube.n;
-    let mut resolve = Resolve::new(s, cube, cells, cams.eye);
+    let n = setup.cube.n;
+    let mut resolve = Resolve::new(s, setup, cams.eye);
     let mut buf = vec![EMPTY; (n * n) as usize];
     for face in &cams.faces {
         let rows = if face.side { n / 2 } else { n };
@@ -591,13 +600,7 @@ pub trait RowBatches: Sync {
     ///
     /// # Errors
     /// The device failed; the caller computes the rows on the CPU.
-    fn rows(
-        &self,
-        s: &Surfaces,
-        cube: &Hemicube,
-        cells: &CellPatches,
-        patches: &[usize],
-    ) -> anyhow::Result<Rows>;
+    fn rows(&self, s: &Surfaces, setup: &Setup, patches: &[usize]) -> anyhow::Result<Rows>;
     /// The device, for the bake's warning.
     fn describe(&self) -> String;
 }
@@ -629,11 +632,11 @@ pub fn compute_on(
     n: u32,
     advance: &(dyn Fn(u64) + Sync),
 ) -> anyhow::Result<FormFactors> {
-    let (cube, cells) = (Hemicube::new(n), CellPatches::new(s));
+    let setup = Setup::new(s, n);
     let patches: Vec<usize> = (0..s.patches.len()).collect();
     let mut results = Vec::with_capacity(patches.len());
     for chunk in patches.chunks(4096) {
-        results.extend(gpu.rows(s, &cube, &cells, chunk)?);
+        results.extend(gpu.rows(s, &setup, chunk)?);
         advance(chunk.len() as u64);
     }
     Ok(FormFactors::from_results(patches.len(), results))
@@ -641,8 +644,8 @@ pub fn compute_on(
 
 /// Every row of F by the hemicube at resolution `n`.
 pub fn compute(s: &Surfaces, n: u32, advance: &(dyn Fn(u64) + Sync)) -> FormFactors {
-    let (cube, cells) = (Hemicube::new(n), CellPatches::new(s));
-    FormFactors::from_row_fn(s.patches.len(), |i| row(s, &cube, &cells, i), advance)
+    let setup = Setup::new(s, n);
+    FormFactors::from_row_fn(s.patches.len(), |i| row(s, &setup, i), advance)
 }
 
 #[cfg(test)]

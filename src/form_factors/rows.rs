@@ -18,7 +18,7 @@ pub struct OnDemand<'a> {
     method: FormFactorMethod,
     rays_per_patch: u32,
     seed: u64,
-    cube: Option<(hemicube::Hemicube, hemicube::CellPatches)>,
+    cube: Option<hemicube::Setup>,
     stats: Mutex<FormFactorStats>,
     /// Hemicubes rendered on the GPU, a batch of rows per pass; dropped
     /// (and the error kept for the bake's warnings) if it fails.
@@ -34,10 +34,8 @@ impl<'a> OnDemand<'a> {
             method: config.form_factors,
             rays_per_patch: config.rays_per_patch,
             seed: config.seed,
-            cube: (config.form_factors == FormFactorMethod::Hemicube).then(|| {
-                let cube = hemicube::Hemicube::new(config.hemicube_resolution);
-                (cube, hemicube::CellPatches::new(surfaces))
-            }),
+            cube: (config.form_factors == FormFactorMethod::Hemicube)
+                .then(|| hemicube::Setup::new(surfaces, config.hemicube_resolution)),
             stats: Mutex::new(FormFactorStats::default()),
             gpu: None,
             gpu_failed: Mutex::new(None),
@@ -60,8 +58,8 @@ impl<'a> OnDemand<'a> {
     fn rows(&self, batch: &[usize]) -> Vec<Vec<(u32, f32)>> {
         use rayon::prelude::*;
         let working = self.gpu_failed.lock().is_ok_and(|e| e.is_none());
-        if let (Some(gpu), Some((cube, cells)), true) = (&self.gpu, &self.cube, working) {
-            match gpu.rows(self.surfaces, cube, cells, batch) {
+        if let (Some(gpu), Some(setup), true) = (&self.gpu, &self.cube, working) {
+            match gpu.rows(self.surfaces, setup, batch) {
                 Ok(rows) => {
                     if let Ok(mut s) = self.stats.lock() {
                         rows.iter().for_each(|r| s.add(&r.1));
@@ -111,9 +109,7 @@ impl OnDemand<'_> {
     /// (not added to [`OnDemand::stats`]).
     pub fn counted(&self, i: usize) -> (Vec<(u32, f32)>, FormFactorStats) {
         match (&self.cube, self.method) {
-            (Some((cube, cells)), FormFactorMethod::Hemicube) => {
-                hemicube::row(self.surfaces, cube, cells, i)
-            }
+            (Some(setup), FormFactorMethod::Hemicube) => hemicube::row(self.surfaces, setup, i),
             _ => raycast::row(self.surfaces, i, self.rays_per_patch, self.seed),
         }
     }
