@@ -18,6 +18,7 @@ use super::{FormFactorStats, FormFactors};
 use crate::sampling::{frame, offset_ray_origin};
 use crate::texels::EMPTY_ENTRY;
 use glam::{Vec2, Vec3};
+use wide::{f32x4, CmpLt};
 
 /// Delta form factors of one hemicube resolution.
 #[derive(Clone, Debug)]
@@ -247,17 +248,10 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
             }
         }
         let (x0, x1) = ((lo.max(min_x as f32)) as i64, (hi.min(max_x as f32)) as i64);
-        for x in x0..x1 {
-            let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-            let w0 = edge(b, c, p) * inv_area;
-            let w1 = edge(c, a, p) * inv_area;
-            let w2 = 1.0 - w0 - w1;
-            if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
-                continue;
-            }
-            let iz = w0 * inv_z[0] + w1 * inv_z[1] + w2 * inv_z[2];
-            let depth = 1.0 / iz;
-            let px = &mut buf[(y as u32 * n + x as u32) as usize];
+        let row = &mut buf[(y as u32 * n) as usize..][..n as usize];
+        // The pixel's depth test and write, from its weights.
+        let mut write = |x: i64, w0: f32, w1: f32, w2: f32, depth: f32| {
+            let px = &mut row[x as usize];
             if depth < px.depth {
                 let uv = (bary_z[0] * w0 + bary_z[1] * w1 + bary_z[2] * w2) * depth;
                 *px = Pixel {
@@ -267,6 +261,48 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
                     v: uv.y,
                 };
             }
+        };
+        // Four pixels at a time: their weights, coverage and depths in the
+        // lanes of `f32x4`, each lane the scalar arithmetic below in the
+        // same order (so the same bits); then the covered ones one by one.
+        let mut x = x0;
+        let py = y as f32 + 0.5;
+        let (k0, k1) = ((c.x - b.x) * (py - b.y), (a.x - c.x) * (py - c.y));
+        while x + 4 <= x1 {
+            let lanes = [0, 1, 2, 3].map(|k| (x + k) as f32 + 0.5);
+            let px = f32x4::from(lanes);
+            let w0 = (f32x4::splat(k0) - f32x4::splat(c.y - b.y) * (px - f32x4::splat(b.x)))
+                * f32x4::splat(inv_area);
+            let w1 = (f32x4::splat(k1) - f32x4::splat(a.y - c.y) * (px - f32x4::splat(c.x)))
+                * f32x4::splat(inv_area);
+            let w2 = f32x4::splat(1.0) - w0 - w1;
+            let zero = f32x4::splat(0.0);
+            let outside = w0.cmp_lt(zero) | w1.cmp_lt(zero) | w2.cmp_lt(zero);
+            let covered = !outside.move_mask() & 0xf;
+            if covered != 0 {
+                let iz = w0 * f32x4::splat(inv_z[0])
+                    + w1 * f32x4::splat(inv_z[1])
+                    + w2 * f32x4::splat(inv_z[2]);
+                let depth = (f32x4::splat(1.0) / iz).to_array();
+                let (w0, w1, w2) = (w0.to_array(), w1.to_array(), w2.to_array());
+                for k in 0..4 {
+                    if covered >> k & 1 == 1 {
+                        write(x + k as i64, w0[k], w1[k], w2[k], depth[k]);
+                    }
+                }
+            }
+            x += 4;
+        }
+        for x in x..x1 {
+            let p = Vec2::new(x as f32 + 0.5, py);
+            let w0 = edge(b, c, p) * inv_area;
+            let w1 = edge(c, a, p) * inv_area;
+            let w2 = 1.0 - w0 - w1;
+            if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                continue;
+            }
+            let iz = w0 * inv_z[0] + w1 * inv_z[1] + w2 * inv_z[2];
+            write(x, w0, w1, w2, 1.0 / iz);
         }
     }
 }
@@ -688,5 +724,49 @@ mod tests {
         );
         // Nearer triangle wins where both cover (the diagonal pixels).
         assert_eq!(buf[7 * 8 + 7].tri, 0);
+    }
+
+    /// Four pixels at a time or one: every pixel a triangle writes holds
+    /// the one-pixel arithmetic's depth and weights to the bit, and every
+    /// pixel it leaves is one that arithmetic finds outside.
+    #[test]
+    fn lanes_give_the_scalar_bits() {
+        let n = 37;
+        let mut rng = crate::sampling::Stream::new(3, 0, 0);
+        for _ in 0..200 {
+            let mut corner = || {
+                let mut c = || rng.next_f32() * 50.0 - 6.0;
+                (Vec3::new(c(), c(), 0.5 + c().abs()), Vec2::new(c(), c()))
+            };
+            let v = [corner(), corner(), corner()];
+            let mut buf = vec![EMPTY; (n * n) as usize];
+            raster_triangle(&v, 7, n, n, &mut buf);
+            let (a, b, c) = (v[0].0, v[1].0, v[2].0);
+            let area = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+            let edge =
+                |a: Vec3, b: Vec3, p: Vec2| (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x);
+            let inv_z = [1.0 / a.z, 1.0 / b.z, 1.0 / c.z];
+            let bary_z = [v[0].1 * inv_z[0], v[1].1 * inv_z[1], v[2].1 * inv_z[2]];
+            for (k, px) in buf.iter().enumerate() {
+                let p = Vec2::new((k as u32 % n) as f32 + 0.5, (k as u32 / n) as f32 + 0.5);
+                // As `raster_triangle` computes it (the weights through
+                // 1 / area, then the depth and the perspective weights).
+                let inv_area = 1.0 / area;
+                let (w0, w1) = (edge(b, c, p) * inv_area, edge(c, a, p) * inv_area);
+                let w2 = 1.0 - w0 - w1;
+                let inside = area.abs() >= 1e-12 && !(w0 < 0.0 || w1 < 0.0 || w2 < 0.0);
+                assert_eq!(px.tri != u32::MAX, inside, "pixel {k}: written iff inside");
+                if !inside {
+                    continue;
+                }
+                let depth = 1.0 / (w0 * inv_z[0] + w1 * inv_z[1] + w2 * inv_z[2]);
+                let uv = (bary_z[0] * w0 + bary_z[1] * w1 + bary_z[2] * w2) * depth;
+                assert_eq!(px.depth.to_bits(), depth.to_bits());
+                assert_eq!(
+                    (px.u.to_bits(), px.v.to_bits()),
+                    (uv.x.to_bits(), uv.y.to_bits())
+                );
+            }
+        }
     }
 }
