@@ -228,7 +228,6 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
     let inv_z = [1.0 / a.z, 1.0 / b.z, 1.0 / c.z];
     let bary_z = [v[0].1 * inv_z[0], v[1].1 * inv_z[1], v[2].1 * inv_z[2]];
     let inv_area = 1.0 / area;
-    let edge = |a: Vec3, b: Vec3, p: Vec2| (b.x - a.x) * (p.y - a.y) - (b.y - a.y) * (p.x - a.x);
     let edges = [(b, c), (c, a), (a, b)];
     for y in min_y..max_y {
         // The row's span: each edge function is linear in x, so the
@@ -249,26 +248,14 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
         }
         let (x0, x1) = ((lo.max(min_x as f32)) as i64, (hi.min(max_x as f32)) as i64);
         let row = &mut buf[(y as u32 * n) as usize..][..n as usize];
-        // The pixel's depth test and write, from its weights.
-        let mut write = |x: i64, w0: f32, w1: f32, w2: f32, depth: f32| {
-            let px = &mut row[x as usize];
-            if depth < px.depth {
-                let uv = (bary_z[0] * w0 + bary_z[1] * w1 + bary_z[2] * w2) * depth;
-                *px = Pixel {
-                    depth,
-                    tri,
-                    u: uv.x,
-                    v: uv.y,
-                };
-            }
-        };
         // Four pixels at a time: their weights, coverage and depths in the
-        // lanes of `f32x4`, each lane the scalar arithmetic below in the
-        // same order (so the same bits); then the covered ones one by one.
-        let mut x = x0;
-        let py = y as f32 + 0.5;
+        // lanes of `f32x4`, each lane the one-pixel arithmetic (edge
+        // functions, then 1 − w0 − w1, then 1/z) in that order, so the same
+        // bits; lanes past the span count as outside. Then the covered
+        // ones are tested and written one by one.
         let (k0, k1) = ((c.x - b.x) * (py - b.y), (a.x - c.x) * (py - c.y));
-        while x + 4 <= x1 {
+        let zero = f32x4::splat(0.0);
+        for x in (x0..x1).step_by(4) {
             let lanes = [0, 1, 2, 3].map(|k| (x + k) as f32 + 0.5);
             let px = f32x4::from(lanes);
             let w0 = (f32x4::splat(k0) - f32x4::splat(c.y - b.y) * (px - f32x4::splat(b.x)))
@@ -276,33 +263,29 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
             let w1 = (f32x4::splat(k1) - f32x4::splat(a.y - c.y) * (px - f32x4::splat(c.x)))
                 * f32x4::splat(inv_area);
             let w2 = f32x4::splat(1.0) - w0 - w1;
-            let zero = f32x4::splat(0.0);
             let outside = w0.cmp_lt(zero) | w1.cmp_lt(zero) | w2.cmp_lt(zero);
-            let covered = !outside.move_mask() & 0xf;
-            if covered != 0 {
-                let iz = w0 * f32x4::splat(inv_z[0])
-                    + w1 * f32x4::splat(inv_z[1])
-                    + w2 * f32x4::splat(inv_z[2]);
-                let depth = (f32x4::splat(1.0) / iz).to_array();
-                let (w0, w1, w2) = (w0.to_array(), w1.to_array(), w2.to_array());
-                for k in 0..4 {
-                    if covered >> k & 1 == 1 {
-                        write(x + k as i64, w0[k], w1[k], w2[k], depth[k]);
-                    }
-                }
-            }
-            x += 4;
-        }
-        for x in x..x1 {
-            let p = Vec2::new(x as f32 + 0.5, py);
-            let w0 = edge(b, c, p) * inv_area;
-            let w1 = edge(c, a, p) * inv_area;
-            let w2 = 1.0 - w0 - w1;
-            if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+            let in_span = (1 << (x1 - x).min(4)) - 1;
+            let covered = !outside.move_mask() & in_span;
+            if covered == 0 {
                 continue;
             }
-            let iz = w0 * inv_z[0] + w1 * inv_z[1] + w2 * inv_z[2];
-            write(x, w0, w1, w2, 1.0 / iz);
+            let iz = w0 * f32x4::splat(inv_z[0])
+                + w1 * f32x4::splat(inv_z[1])
+                + w2 * f32x4::splat(inv_z[2]);
+            let depth = (f32x4::splat(1.0) / iz).to_array();
+            let (w0, w1, w2) = (w0.to_array(), w1.to_array(), w2.to_array());
+            for k in (0..4).filter(|k| covered >> k & 1 == 1) {
+                let px = &mut row[(x + k as i64) as usize];
+                if depth[k] < px.depth {
+                    let uv = (bary_z[0] * w0[k] + bary_z[1] * w1[k] + bary_z[2] * w2[k]) * depth[k];
+                    *px = Pixel {
+                        depth: depth[k],
+                        tri,
+                        u: uv.x,
+                        v: uv.y,
+                    };
+                }
+            }
         }
     }
 }
@@ -438,8 +421,7 @@ const LAND: usize = usize::MAX - 2;
 /// so both devices land pixels by the same code.
 pub(crate) struct Resolve<'a> {
     s: &'a Surfaces<'a>,
-    cube: &'a Hemicube,
-    cells: &'a CellPatches,
+    setup: &'a Setup,
     eye: Vec3,
     /// Σ ΔF per patch, dense, and the patches touched (in first-seen order).
     sums: Vec<f32>,
@@ -451,8 +433,7 @@ impl<'a> Resolve<'a> {
     pub(crate) fn new(s: &'a Surfaces<'a>, setup: &'a Setup, eye: Vec3) -> Self {
         Resolve {
             s,
-            cube: &setup.cube,
-            cells: &setup.cells,
+            setup,
             eye,
             sums: vec![0.0; s.patches.len()],
             touched: Vec::new(),
@@ -464,11 +445,8 @@ impl<'a> Resolve<'a> {
     /// edge), [`BATCH`] at a time: each pixel's cell (or what it is
     /// instead), then the cells' entries, then the sums, in pixel order.
     pub(crate) fn face(&mut self, face: &Face, pixels: &[Pixel]) {
-        let weights = if face.side {
-            &self.cube.side
-        } else {
-            &self.cube.top
-        };
+        let cube = &self.setup.cube;
+        let weights = if face.side { &cube.side } else { &cube.top };
         self.stats.rays += pixels.len() as u64;
         let mut slots = [0usize; BATCH];
         let mut owners = [0u32; BATCH];
@@ -478,7 +456,7 @@ impl<'a> Resolve<'a> {
             for k in 0..chunk.len() {
                 let slot = slots[k];
                 entries[k] = if slot < LAND {
-                    self.cells.entries[slot]
+                    self.setup.cells.entries[slot]
                 } else {
                     EMPTY_ENTRY
                 };
@@ -523,7 +501,7 @@ impl<'a> Resolve<'a> {
             }
             let uv = g.uv_lm_at(tri, px.u, px.v);
             slots[k] = match (owner != u32::MAX)
-                .then(|| self.cells.slot(page, floor(uv.x), floor(uv.y)))
+                .then(|| self.setup.cells.slot(page, floor(uv.x), floor(uv.y)))
                 .flatten()
             {
                 Some(slot) => slot,

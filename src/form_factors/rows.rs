@@ -18,7 +18,8 @@ pub struct OnDemand<'a> {
     method: FormFactorMethod,
     rays_per_patch: u32,
     seed: u64,
-    cube: Option<hemicube::Setup>,
+    /// The hemicube's delta form factors and cell map (hemicube rows only).
+    hemicubes: Option<hemicube::Setup>,
     stats: Mutex<FormFactorStats>,
     /// Hemicubes rendered on the GPU, a batch of rows per pass; dropped
     /// (and the error kept for the bake's warnings) if it fails.
@@ -34,7 +35,7 @@ impl<'a> OnDemand<'a> {
             method: config.form_factors,
             rays_per_patch: config.rays_per_patch,
             seed: config.seed,
-            cube: (config.form_factors == FormFactorMethod::Hemicube)
+            hemicubes: (config.form_factors == FormFactorMethod::Hemicube)
                 .then(|| hemicube::Setup::new(surfaces, config.hemicube_resolution)),
             stats: Mutex::new(FormFactorStats::default()),
             gpu: None,
@@ -58,7 +59,7 @@ impl<'a> OnDemand<'a> {
     fn rows(&self, batch: &[usize]) -> Vec<Vec<(u32, f32)>> {
         use rayon::prelude::*;
         let working = self.gpu_failed.lock().is_ok_and(|e| e.is_none());
-        if let (Some(gpu), Some(setup), true) = (&self.gpu, &self.cube, working) {
+        if let (Some(gpu), Some(setup), true) = (&self.gpu, &self.hemicubes, working) {
             match gpu.rows(self.surfaces, setup, batch) {
                 Ok(rows) => {
                     if let Ok(mut s) = self.stats.lock() {
@@ -108,7 +109,7 @@ impl OnDemand<'_> {
     /// Row i of F on the CPU by the configured method, with its counters
     /// (not added to [`OnDemand::stats`]).
     pub fn counted(&self, i: usize) -> (Vec<(u32, f32)>, FormFactorStats) {
-        match (&self.cube, self.method) {
+        match (&self.hemicubes, self.method) {
             (Some(setup), FormFactorMethod::Hemicube) => hemicube::row(self.surfaces, setup, i),
             _ => raycast::row(self.surfaces, i, self.rays_per_patch, self.seed),
         }

@@ -173,20 +173,12 @@ fn power_of(unshot: Vec3, area: f32) -> f64 {
     (unshot.element_sum() * area).max(0.0) as f64
 }
 
-/// What receiver j gets from a shot of unshot radiance `shoot` through
-/// its row's entry `v` (Sᵢⱼ, or Fᵢⱼ scaled here where `reciprocal` =
-/// Some(i)): (ΔHⱼ, ρⱼ ΔHⱼ).
+/// What a receiver of albedo ρⱼ gets from a shot of unshot radiance
+/// `shoot` through its coefficient Sᵢⱼ = `s`: (ΔHⱼ, ρⱼ ΔHⱼ).
 #[inline(always)]
-fn received(
-    sys: &System,
-    j: usize,
-    v: f32,
-    shoot: Vec3,
-    reciprocal: Option<usize>,
-) -> (Vec3, Vec3) {
-    let s = reciprocal.map_or(v, |i| crate::solve::reciprocal(v, i, j, sys.area));
+fn received(albedo: Vec3, s: f32, shoot: Vec3) -> (Vec3, Vec3) {
     let dh = shoot * s;
-    (dh, sys.albedo[j] * dh)
+    (dh, albedo * dh)
 }
 
 /// One shot of a step: the shooter's row (sorted by column), the unshot
@@ -255,7 +247,7 @@ struct Block<'b> {
 
 impl Block<'_> {
     /// A shot's `entries` in this block, each scaled by `scale(j, v)`
-    /// ([`received`]'s arithmetic); `change` plus the change of the
+    /// ([`received`]); `change` plus the change of the
     /// unshot power, added entry by entry. (A loop, not a closure: a
     /// closure kept `change` in memory, a store and a load per entry.)
     #[inline(always)]
@@ -269,8 +261,7 @@ impl Block<'_> {
         for &(j, v) in entries {
             let j = j as usize;
             let k = j - self.lo;
-            let dh = shoot * scale(j, v);
-            let dl = self.albedo[k] * dh;
+            let (dh, dl) = received(self.albedo[k], scale(j, v), shoot);
             self.h[k] += dh;
             self.l[k] += dl;
             self.u[k] += dl;
@@ -357,7 +348,11 @@ impl<'a> Shooting<'a> {
         let mut first = 0.0;
         while batch.len() < limit {
             let i = match &order {
-                Some(order) => order.get(batch.len()).copied().unwrap_or(0),
+                Some(order) => match order.get(batch.len()) {
+                    Some(&i) => i,
+                    // Every patch with power left is in the batch.
+                    None => break,
+                },
                 None => self.argmax(),
             };
             let p = self.powers.get(i).copied().unwrap_or(0.0);
@@ -488,7 +483,8 @@ impl<'a> Shooting<'a> {
         for &(row, shoot, reciprocal) in shots {
             for &(j, v) in row {
                 let j = j as usize;
-                let (dh, dl) = received(sys, j, v, shoot, reciprocal);
+                let s = reciprocal.map_or(v, |i| crate::solve::reciprocal(v, i, j, sys.area));
+                let (dh, dl) = received(sys.albedo[j], s, shoot);
                 self.irradiance[j] += dh;
                 self.radiance[j] += dl;
                 self.unshot[j] += dl;
