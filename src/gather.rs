@@ -83,6 +83,10 @@ fn nee_net(seed: u64, t: usize) -> (Net, Stream) {
     (Net::shuffled(&mut rng), rng)
 }
 
+/// Rays a texel casts before their hits are read ([`Gatherer::texel`]): a
+/// divisor of [`FIRST_CHECKPOINT`] and of `surely_buried`'s first count.
+const GROUP: usize = 16;
+
 /// The adaptive gather's first checkpoint: below it no variance estimate is
 /// trusted.
 const FIRST_CHECKPOINT: u32 = 32;
@@ -217,7 +221,52 @@ pub struct TexelGather {
     cast: u32,
     /// Light-sample rays cast ([`crate::nee`]).
     nee: u32,
+    /// Rays cast in all (a few more than `cast + nee` where the texel was
+    /// found invalid in mid-group).
+    traced: u32,
     light: Vec3,
+}
+
+/// A texel's running sums over the rays it has read.
+#[derive(Default)]
+struct Sums {
+    /// Indirect light.
+    sum: Vec3,
+    /// Rays that met back faces.
+    back: u32,
+    /// Luminance of each ray's whole contribution (indirect and hemisphere
+    /// direct), and its square, for the stopping rule.
+    all: f32,
+    all_sq: f32,
+    directional: Directional,
+    /// Rays that met nothing within the AO distance.
+    open: u32,
+    /// Direct light from the rays.
+    light: Vec3,
+    /// Cosine rays read.
+    cast: u32,
+    /// Light samples cast.
+    nee: u32,
+}
+
+impl Sums {
+    /// The texel's gather from its sums, `traced` rays cast in all.
+    fn finish(self, traced: u32, tolerance: f32) -> TexelGather {
+        let n = self.cast as f32;
+        let whole = self.all / n;
+        TexelGather {
+            mean: self.sum / n,
+            valid: !too_many_back_faces(self.back, self.cast, tolerance)
+                && !surely_buried(self.back, self.cast, tolerance),
+            variance: ((self.all_sq / n - whole * whole).max(0.0)) / n,
+            directional: self.directional.map(|b| b / n),
+            ao: self.open as f32 / n,
+            cast: self.cast,
+            nee: self.nee,
+            traced,
+            light: self.light / n,
+        }
+    }
 }
 
 /// Everything a texel's gather reads: shared by the CPU gather and the
@@ -318,11 +367,18 @@ impl<'a> Gatherer<'a> {
         let front = g.ng_ws[tri].dot(dir) < 0.0;
         let mut sampled = Vec3::ZERO;
         if front {
-            let uv0 = g.uv0_at(hit.tri, hit.u, hit.v);
+            // A surface that emits nothing is read without its texture
+            // coordinates: one load fewer per hit.
+            let material = &self.s.scene.materials[m as usize];
+            let e = if material.is_emissive() {
+                self.s.scene.emission_at(m, g.uv0_at(hit.tri, hit.u, hit.v))
+            } else {
+                material.emission
+            };
             if !self.sampled[m as usize] {
-                l += self.s.scene.emission_at(m, uv0);
+                l += e;
             } else if self.extras.directional {
-                sampled = self.s.scene.emission_at(m, uv0);
+                sampled = e;
             }
         }
         (l, sampled)
@@ -385,17 +441,9 @@ impl<'a> Gatherer<'a> {
         let (s, extras, rays) = (self.s, &self.extras, self.rays);
         if s.burial.enclosed(t) {
             // Every ray of the validity estimate met a back face: the texel
-            // is inside a solid; it receives nothing and is filled.
-            return TexelGather {
-                mean: Vec3::ZERO,
-                valid: false,
-                variance: 0.0,
-                directional: [Vec3::ZERO; 3],
-                ao: 0.0,
-                cast: 0,
-                nee: 0,
-                light: Vec3::ZERO,
-            };
+            // is inside a solid; it receives nothing (all zeros, invalid)
+            // and is filled.
+            return TexelGather::default();
         }
         let nets = texel_nets(self.seed, PURPOSE, t);
         let mut tl = self.texel_lights(t);
@@ -404,105 +452,121 @@ impl<'a> Gatherer<'a> {
         // The rule judges the irradiance only: the directional part and AO
         // need every ray.
         let adaptive = extras.threshold > 0.0 && !extras.directional && extras.ao_distance <= 0.0;
-        let (mut sum, mut back) = (Vec3::ZERO, 0u32);
-        // Luminance of each ray's whole contribution (indirect and
-        // hemisphere direct), for the stopping rule.
-        let (mut all, mut all_sq) = (0.0f32, 0.0f32);
-        let mut dir_sum: Directional = [Vec3::ZERO; 3];
-        let mut open = 0u32;
-        let mut light = Vec3::ZERO;
-        let (mut n_cast, mut n_nee) = (0u32, 0u32);
-        for k in 0..rays {
-            // Once more rays have met back faces than an invalid
-            // texel needs, the texel is invalid whatever the rest
-            // would find (its value is replaced from its chart), so
-            // stop: texels inside walls are a quarter of Sponza's.
-            if too_many_back_faces(back, rays, extras.backface_tolerance)
-                || surely_buried(back, n_cast, extras.backface_tolerance)
-            {
+        let mut sums = Sums::default();
+        let mut traced = 0u32;
+        let mut cast = |k: u32, origin: Vec3, dir: Vec3| {
+            traced += 1;
+            cast(k, origin, dir)
+        };
+        // Once more rays have met back faces than an invalid texel needs,
+        // the texel is invalid whatever the rest would find (its value is
+        // replaced from its chart), so stop: texels inside walls are a
+        // quarter of Sponza's. The adaptive gather stops at its checkpoints.
+        let stop = |x: &Sums| {
+            too_many_back_faces(x.back, rays, extras.backface_tolerance)
+                || surely_buried(x.back, x.cast, extras.backface_tolerance)
+                || (adaptive
+                    && x.cast >= FIRST_CHECKPOINT
+                    && x.cast.is_power_of_two()
+                    && converged(x.all, x.all_sq, x.cast, known, extras.threshold))
+        };
+        // The rays go out GROUP at a time and their hits are landed together
+        // ([`Surfaces::land_many`]), then read one by one as before. The
+        // stopping rules are checked before each ray as before, and before
+        // each group is cast: the group is a divisor of the checkpoints and
+        // of `surely_buried`'s first count, so only a texel found invalid
+        // in mid-group casts rays it does not read.
+        let mut group = [(Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO); GROUP];
+        let mut hits = [None; GROUP];
+        let mut landings = [Landing::Escaped; GROUP];
+        'rays: for k0 in (0..rays).step_by(GROUP) {
+            if stop(&sums) {
                 break;
             }
-            if adaptive
-                && n_cast >= FIRST_CHECKPOINT
-                && n_cast.is_power_of_two()
-                && converged(all, all_sq, n_cast, known, extras.threshold)
-            {
-                break;
+            let m = (rays - k0).min(GROUP as u32) as usize;
+            for (i, (ray, hit)) in group.iter_mut().zip(&mut hits).take(m).enumerate() {
+                let k = k0 + i as u32;
+                let (p, ng, dir) = texel_ray(&sampler, k, &nets);
+                let origin = offset_ray_origin(p, ng);
+                *ray = (p, ng, dir, origin);
+                *hit = cast(k, origin, dir);
             }
-            n_cast += 1;
-            let (p, ng, dir) = texel_ray(&sampler, k, &nets);
-            let origin = offset_ray_origin(p, ng);
-            // Radiance for the directional part: everything seen.
-            let mut seen = Vec3::ZERO;
-            let mut indirect = Vec3::ZERO;
-            let hit = cast(k, origin, dir);
-            let landing = match hit {
-                Some(h) => s.land(h.tri, h.u, h.v, dir),
-                None => Landing::Escaped,
-            };
-            let mut ray_light = Vec3::ZERO;
-            if let Some((lights, mis)) = self.direct {
-                ray_light = hemisphere_light(s, lights, mis, (p, ng, dir), (landing, hit));
-                light += ray_light;
-            }
-            if extras.ao_distance > 0.0 && hit.is_none_or(|h| h.t >= extras.ao_distance) {
-                open += 1;
-            }
-            match (landing, hit) {
-                (Landing::Texel(h), Some(hit)) => {
-                    let (l, sampled) = self.read(h, &hit, dir);
-                    // The cosine ray's MIS weight against the light samples.
-                    let w = tl.as_ref().map_or(1.0, |tl| {
-                        let pn = self.light_pdf(tl.lights, tl.patch, h, &hit, dir);
-                        power(ng.dot(dir) * std::f32::consts::FRAC_1_PI, pn)
-                    });
-                    indirect = l * w;
-                    seen = indirect + sampled;
+            s.land_many(&hits[..m], |i| group[i].2, &mut landings[..m]);
+            for i in 0..m {
+                if stop(&sums) {
+                    break 'rays;
                 }
-                (Landing::BackFace, _) => back += 1,
-                (Landing::Escaped, _) => seen = extras.sky.radiance(dir),
-                _ => {}
+                let ray = (k0 + i as u32, group[i]);
+                self.read_ray(&mut sums, &mut tl, ray, (landings[i], hits[i]), &mut cast);
             }
-            if extras.directional {
-                dir_sum = add_directional(dir_sum, seen, ng, dir);
+        }
+        sums.finish(traced, extras.backface_tolerance)
+    }
+
+    /// Adds ray `k` from `p` (normal `ng`, offset origin `origin`) along
+    /// `dir` to a texel's sums, with what it met; and the texel's light
+    /// sample `k`, cast with `cast`.
+    #[inline(always)]
+    fn read_ray(
+        &self,
+        sums: &mut Sums,
+        tl: &mut Option<TexelLights>,
+        (k, (p, ng, dir, origin)): (u32, (Vec3, Vec3, Vec3, Vec3)),
+        (landing, hit): (Landing, Option<Hit>),
+        cast: &mut impl FnMut(u32, Vec3, Vec3) -> Option<Hit>,
+    ) {
+        let (s, extras) = (self.s, &self.extras);
+        sums.cast += 1;
+        // Radiance for the directional part: everything seen.
+        let mut seen = Vec3::ZERO;
+        let mut indirect = Vec3::ZERO;
+        let mut ray_light = Vec3::ZERO;
+        if let Some((lights, mis)) = self.direct {
+            ray_light = hemisphere_light(s, lights, mis, (p, ng, dir), (landing, hit));
+            sums.light += ray_light;
+        }
+        if extras.ao_distance > 0.0 && hit.is_none_or(|h| h.t >= extras.ao_distance) {
+            sums.open += 1;
+        }
+        match (landing, hit) {
+            (Landing::Texel(h), Some(hit)) => {
+                let (l, sampled) = self.read(h, &hit, dir);
+                // The cosine ray's MIS weight against the light samples.
+                let w = tl.as_ref().map_or(1.0, |tl| {
+                    let pn = self.light_pdf(tl.lights, tl.patch, h, &hit, dir);
+                    power(ng.dot(dir) * std::f32::consts::FRAC_1_PI, pn)
+                });
+                indirect = l * w;
+                seen = indirect + sampled;
             }
-            if let Some(tl) = tl.as_mut() {
-                if let Some(ls) = tl.sample(s, origin, ng, k) {
-                    n_nee += 1;
-                    let (l, pn) =
-                        self.light_ray(tl.lights, tl.patch, &ls, cast(rays + k, origin, ls.dir));
-                    if pn > 0.0 {
-                        let pc = ng.dot(ls.dir) * std::f32::consts::FRAC_1_PI;
-                        // w_n f / p_n with f = L cos θ / π = L p_c.
-                        let contribution = l * (power(pn, pc) * pc / pn);
-                        indirect += contribution;
-                        if extras.directional {
-                            dir_sum = add_directional(dir_sum, contribution, ng, ls.dir);
-                        }
+            (Landing::BackFace, _) => sums.back += 1,
+            (Landing::Escaped, _) => seen = extras.sky.radiance(dir),
+            _ => {}
+        }
+        if extras.directional {
+            sums.directional = add_directional(sums.directional, seen, ng, dir);
+        }
+        if let Some(tl) = tl.as_mut() {
+            if let Some(ls) = tl.sample(s, origin, ng, k) {
+                sums.nee += 1;
+                let hit = cast(self.rays + k, origin, ls.dir);
+                let (l, pn) = self.light_ray(tl.lights, tl.patch, &ls, hit);
+                if pn > 0.0 {
+                    let pc = ng.dot(ls.dir) * std::f32::consts::FRAC_1_PI;
+                    // w_n f / p_n with f = L cos θ / π = L p_c.
+                    let contribution = l * (power(pn, pc) * pc / pn);
+                    indirect += contribution;
+                    if extras.directional {
+                        sums.directional =
+                            add_directional(sums.directional, contribution, ng, ls.dir);
                     }
                 }
             }
-            sum += indirect;
-            let whole = (indirect + ray_light).element_sum() / 3.0;
-            all += whole;
-            all_sq += whole * whole;
         }
-        let n = n_cast as f32;
-        let mean = sum / n;
-        TexelGather {
-            mean,
-            valid: !too_many_back_faces(back, n_cast, extras.backface_tolerance)
-                && !surely_buried(back, n_cast, extras.backface_tolerance),
-            variance: {
-                let whole = all / n;
-                ((all_sq / n - whole * whole).max(0.0)) / n
-            },
-            directional: dir_sum.map(|b| b / n),
-            ao: open as f32 / n,
-            cast: n_cast,
-            nee: n_nee,
-            light: light / n,
-        }
+        sums.sum += indirect;
+        let whole = (indirect + ray_light).element_sum() / 3.0;
+        sums.all += whole;
+        sums.all_sq += whole * whole;
     }
 
     /// What light sample `ls`'s ray reads, and its density p_n: the
@@ -624,7 +688,7 @@ impl<'a> Gatherer<'a> {
             rays: 0,
         };
         for x in texels {
-            gathered.rays += x.cast as u64 + x.nee as u64;
+            gathered.rays += x.traced as u64;
             gathered.indirect.push(x.mean);
             gathered.valid.push(x.valid);
             gathered.variance.push(x.variance);

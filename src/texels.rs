@@ -163,7 +163,48 @@ impl Texels {
         }
         best.map(|(_, t)| t)
     }
+
+    /// [`Texels::lookup`] of every query (page, lightmap point, instance,
+    /// chart), in order, with the same answers. The entries' addresses are
+    /// all worked out before any is loaded, so the loads (a cache miss each
+    /// on a level: the index is megabytes, and hits land anywhere) overlap
+    /// instead of waiting one after the other; the rare query whose cell is
+    /// not its surface's looks around as `lookup` does.
+    pub fn lookup_batch(&self, queries: &[(u32, Vec2, u32, u32)], out: &mut [Option<u32>]) {
+        const NOWHERE: u32 = u32::MAX;
+        for (q, o) in queries
+            .chunks(LOOKUP_BATCH)
+            .zip(out.chunks_mut(LOOKUP_BATCH))
+        {
+            // (page, entry in the page) of each query's cell.
+            let mut slot = [(0u32, NOWHERE); LOOKUP_BATCH];
+            for (s, &(page, uv, _, chart)) in slot.iter_mut().zip(q) {
+                let (x, y) = (uv.x.floor() as i64, uv.y.floor() as i64);
+                let inside = x >= 0 && y >= 0 && x < self.width as i64 && y < self.height as i64;
+                if chart != u32::MAX && inside {
+                    *s = (page, y as u32 * self.width + x as u32);
+                }
+            }
+            let mut entry = [EMPTY_ENTRY; LOOKUP_BATCH];
+            for (e, &(page, at)) in entry.iter_mut().zip(&slot) {
+                if at != NOWHERE {
+                    *e = self.index[page as usize][at as usize];
+                }
+            }
+            for ((o, &(page, uv, instance, chart)), &e) in o.iter_mut().zip(q).zip(&entry) {
+                let found = e != EMPTY_ENTRY && (e >> 32) as u32 == self.owner(instance, chart);
+                *o = if chart != u32::MAX && found {
+                    Some(e as u32)
+                } else {
+                    self.lookup(page, uv, instance, chart)
+                };
+            }
+        }
+    }
 }
+
+/// Queries [`Texels::lookup_batch`] works out before loading their entries.
+const LOOKUP_BATCH: usize = 16;
 
 /// Area and centroid of triangle `t` clipped to the unit square at `(x, y)`.
 ///

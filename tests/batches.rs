@@ -8,7 +8,7 @@ mod common;
 
 use common::scene_path;
 use glam::Vec3;
-use radbake::form_factors::raycast;
+use radbake::form_factors::raycast::{self, Landing};
 use radbake::gather::{Extras, Gatherer};
 use radbake::raycast::batch::CpuBatches;
 use radbake::raycast::RayCaster;
@@ -67,4 +67,49 @@ fn batched_form_factors_and_gather_equal_the_cpu_path() {
     assert_eq!(a.ao, b.ao);
     assert!(a.indirect.iter().any(|v| v.max_element() > 0.0));
     assert!(!a.directional.is_empty() && !a.ao.is_empty());
+}
+
+/// [`Surfaces::land_many`](radbake::form_factors::raycast::Surfaces::land_many)
+/// gives every hit the landing that landing it alone gives: rays from
+/// random points in the Cornell box in random directions, so that they
+/// meet fronts, backs (the blocks' insides), unmapped and split texels.
+#[test]
+fn landing_hits_together_equals_landing_each() {
+    let scene = radbake::scene::load(&scene_path("cornell_box.gltf"), &Default::default())
+        .expect("scene loads");
+    let config = BakeConfig {
+        texels_per_meter: 24.0,
+        final_gather: 0,
+        ..BakeConfig::default()
+    };
+    let bake = radbake::bake(&scene, &config, &Silent).expect("bake");
+    let rays = RayCaster::new(&scene, &bake.geometry);
+    let s = bake.surfaces(&rays);
+    let (lo, hi) = bake.geometry.p_ws.iter().flatten().fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let mut rng = radbake::sampling::Stream::new(5, 0, 0);
+    let cast: Vec<(Vec3, Option<radbake::raycast::Hit>)> = (0..20_000)
+        .map(|_| {
+            let o = lo + (hi - lo) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+            let d = d.normalize_or(Vec3::Z);
+            (d, rays.closest_hit(o, d, f32::INFINITY))
+        })
+        .collect();
+    let hits: Vec<_> = cast.iter().map(|c| c.1).collect();
+    // 20,000 is not a multiple of the passes' 16: the last pass is short.
+    let mut together = vec![Landing::Escaped; hits.len()];
+    s.land_many(&hits, |i| cast[i].0, &mut together);
+    let alone: Vec<Landing> = cast
+        .iter()
+        .map(|&(d, h)| h.map_or(Landing::Escaped, |h| s.land(h.tri, h.u, h.v, d)))
+        .collect();
+    assert_eq!(together, alone);
+    let count = |f: &dyn Fn(&Landing) -> bool| alone.iter().filter(|l| f(l)).count();
+    assert!(count(&|l| matches!(l, Landing::BackFace)) > 0);
+    assert!(count(&|l| matches!(l, Landing::Escaped)) > 0);
+    let split = count(&|l| matches!(l, Landing::Texel(t) if bake.burial.split(*t as usize)));
+    assert!(split > 0, "some hits land on split texels");
 }
