@@ -468,13 +468,21 @@ pub(super) fn write_outputs(
 ) -> Result<Vec<PathBuf>, (u8, String)> {
     use radbake::output;
     let t = Instant::now();
-    let lightmaps = &bake.maps.lightmaps;
-    let mut written = output::write_lightmaps(out, lightmaps).map_err(lib_err)?;
-    written.extend(output::write_extra_maps(out, bake).map_err(lib_err)?);
-    if bake.config.debug_maps {
-        written.extend(output::write_debug_maps(out, bake).map_err(lib_err)?);
-    }
-    written.extend(output::write_engine_outputs(out, stem, bake).map_err(lib_err)?);
+    // The float pages and the engines' files are written side by side
+    // (different files; each encoder runs on one core).
+    let (maps, engines) = rayon::join(
+        || -> radbake::Result<Vec<PathBuf>> {
+            let mut written = output::write_lightmaps(out, &bake.maps.lightmaps)?;
+            written.extend(output::write_extra_maps(out, bake)?);
+            if bake.config.debug_maps {
+                written.extend(output::write_debug_maps(out, bake)?);
+            }
+            Ok(written)
+        },
+        || output::write_engine_outputs(out, stem, bake),
+    );
+    let mut written = maps.map_err(lib_err)?;
+    written.extend(engines.map_err(lib_err)?);
     report.stages.push(StageTime {
         stage: "write".into(),
         seconds: t.elapsed().as_secs_f64(),

@@ -55,6 +55,12 @@ pub fn ktx2_rgb9e5(size: [u32; 3], texels: &[u32]) -> Vec<u8> {
     container(size, texels, None)
 }
 
+/// The Zstandard level of every KTX2 file a bake writes. Sponza's RGB9E5
+/// page (8.6 MB raw, `zstd` 1.5 on the EPYC VM): level 3 4.49 MB in
+/// 0.07 s, level 9 4.41 MB in 0.18 s; the level only trades size for time,
+/// the decoded texels are the same.
+pub const ZSTD_LEVEL: i32 = 3;
+
 /// [`ktx2_rgb9e5`] with the level supercompressed by Zstandard at `level`
 /// (KTX2 scheme 2, as Bevy's own sample lightmaps are; Bevy reads it with
 /// its `zstd_rust` feature, on by default).

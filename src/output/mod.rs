@@ -82,24 +82,37 @@ pub fn remove_temporaries(out_dir: &Path, pid: Option<u32>) {
         return;
     };
     for e in entries.flatten() {
-        let name = e.file_name().to_string_lossy().into_owned();
-        let Some(rest) = name.strip_prefix('.') else {
-            continue;
-        };
-        let Some(pos) = rest.rfind(".tmp.") else {
-            continue;
-        };
-        let before = &rest[..pos];
-        let Some(dot) = before.rfind('.') else {
-            continue;
-        };
-        let Ok(file_pid) = before[dot + 1..].parse::<u32>() else {
+        let Some(file_pid) = temporary_pid(&e.file_name().to_string_lossy()) else {
             continue;
         };
         if pid.is_none_or(|p| p == file_pid) {
             let _ = std::fs::remove_file(e.path());
         }
     }
+}
+
+/// Removes the temporary files that other processes left in `out_dir`
+/// ([`remove_temporaries`] of every pid but this one's).
+pub fn remove_stale_temporaries(out_dir: &Path) {
+    let own = std::process::id();
+    let Ok(entries) = std::fs::read_dir(out_dir) else {
+        return;
+    };
+    let pids: std::collections::BTreeSet<u32> = entries
+        .flatten()
+        .filter_map(|e| temporary_pid(&e.file_name().to_string_lossy()))
+        .filter(|&p| p != own)
+        .collect();
+    for pid in pids {
+        remove_temporaries(out_dir, Some(pid));
+    }
+}
+
+/// The pid in a temporary's name (`.<file>.<pid>.tmp.<ext>`), if it is one.
+fn temporary_pid(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix('.')?;
+    let before = &rest[..rest.rfind(".tmp.")?];
+    before[before.rfind('.')? + 1..].parse().ok()
 }
 
 /// Writes bytes atomically.
@@ -179,8 +192,9 @@ pub fn write_lightmaps(out_dir: &Path, lightmaps: &Lightmaps) -> Result<Vec<Path
         path: out_dir.to_path_buf(),
         source,
     })?;
-    // Stale temporaries of a killed bake.
-    remove_temporaries(out_dir, None);
+    // Stale temporaries of a killed bake (not this process's: its other
+    // outputs may be being written alongside).
+    remove_stale_temporaries(out_dir);
     let mut written = Vec::new();
     for page in 0..lightmaps.pages.len() {
         let exr = out_dir.join(format!("lightmap_{page}.exr"));
@@ -217,7 +231,12 @@ pub fn write_extra_maps(out_dir: &Path, bake: &crate::Bake) -> Result<Vec<PathBu
                 if bake.config.ktx2 != crate::config::Ktx2Mode::Off {
                     // Signed (the linear coefficients): half floats.
                     let path = out_dir.join(format!("lightmap_{page}_sh_{name}.ktx2"));
-                    let bytes = ktx2::ktx2_rgba16f_zstd(lm.width, lm.height, &lm.pages[page], 9);
+                    let bytes = ktx2::ktx2_rgba16f_zstd(
+                        lm.width,
+                        lm.height,
+                        &lm.pages[page],
+                        ktx2::ZSTD_LEVEL,
+                    );
                     write_bytes_atomic(&path, &bytes)?;
                     written.push(path);
                 }
@@ -362,10 +381,10 @@ pub fn write_engine_outputs(
         if let Some(k) = &ktx2 {
             let (w, h, texels) = (lightmaps.width, lightmaps.height, &lightmaps.pages[page]);
             let bytes = if mode == Ktx2Mode::Bc6h {
-                ktx2::ktx2_bc6h_zstd(w, h, texels, 9)
+                ktx2::ktx2_bc6h_zstd(w, h, texels, ktx2::ZSTD_LEVEL)
             } else {
                 let packed: Vec<u32> = texels.iter().map(|v| ktx2::rgb9e5(*v)).collect();
-                ktx2::ktx2_rgb9e5_zstd([w, h, 0], &packed, 9)
+                ktx2::ktx2_rgb9e5_zstd([w, h, 0], &packed, ktx2::ZSTD_LEVEL)
             };
             write_bytes_atomic(&out_dir.join(k), &bytes)?;
             written.push(out_dir.join(k));

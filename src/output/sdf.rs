@@ -43,8 +43,8 @@ pub fn write(
 /// [`Error::Io`].
 pub fn write_ktx2(ktx2_path: &Path, sdf: &Sdf, format: SdfFormat) -> Result<()> {
     let bytes = match format {
-        SdfFormat::R32f => ktx2::ktx2_r32f_zstd(sdf.grid.dims, &sdf.distance, 9),
-        SdfFormat::R16f => ktx2::ktx2_r16f_zstd(sdf.grid.dims, &sdf.distance, 9),
+        SdfFormat::R32f => ktx2::ktx2_r32f_zstd(sdf.grid.dims, &sdf.distance, ktx2::ZSTD_LEVEL),
+        SdfFormat::R16f => ktx2::ktx2_r16f_zstd(sdf.grid.dims, &sdf.distance, ktx2::ZSTD_LEVEL),
     };
     write_bytes_atomic(ktx2_path, &bytes)
 }

@@ -102,7 +102,12 @@ pub fn write(
         paths.push(out_dir.join(&exr));
         let ktx = ktx2_on.then(|| format!("shadowmask_{page}.ktx2"));
         if let Some(k) = &ktx {
-            let bytes = ktx2::ktx2_rgba8_zstd(mask.width, mask.height, &rgba8(mask, page), 9);
+            let bytes = ktx2::ktx2_rgba8_zstd(
+                mask.width,
+                mask.height,
+                &rgba8(mask, page),
+                ktx2::ZSTD_LEVEL,
+            );
             write_bytes_atomic(&out_dir.join(k), &bytes)?;
             paths.push(out_dir.join(k));
         }
