@@ -349,7 +349,7 @@ fn inside(s: &Surfaces, o: Vec3, ng: Vec3, rng: &mut Stream) -> bool {
             cosine_hemisphere(stratified(k, HEMISPHERE_RAYS, rng.next_vec2())),
             ng,
         );
-        if let (crate::form_factors::raycast::Landing::BackFace, _) = s.trace(o, dir) {
+        if s.meets_back_face(o, dir) {
             back += 1;
         }
     }

@@ -134,7 +134,7 @@ pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<u8>, u64) {
                 let mut back = 0u8;
                 for k in 0..rays {
                     let (p, ng, dir) = texel_ray(&sampler, k, &nets);
-                    if let (Landing::BackFace, _) = s.trace(offset_ray_origin(p, ng), dir) {
+                    if s.meets_back_face(offset_ray_origin(p, ng), dir) {
                         back += 1;
                     }
                 }

@@ -157,12 +157,30 @@ impl Surfaces<'_> {
             || self.scene.materials[g.material[t] as usize].double_sided
     }
 
+    /// Whether a ray along `dir` meets triangle `tri` from behind and it
+    /// is one-sided: [`Landing::BackFace`], told without the texel lookup.
+    #[inline]
+    pub fn back_face(&self, tri: u32, dir: Vec3) -> bool {
+        let (g, t) = (self.geometry, tri as usize);
+        let front = g.ng_ws[t].dot(dir) < 0.0;
+        !front && !self.scene.materials[g.material[t] as usize].double_sided
+    }
+
+    /// Whether the ray from `origin` along `dir` first meets a one-sided
+    /// surface from behind ([`Surfaces::trace`]'s [`Landing::BackFace`],
+    /// without landing the hit on a texel).
+    #[inline]
+    pub fn meets_back_face(&self, origin: Vec3, dir: Vec3) -> bool {
+        self.rays
+            .closest_hit(origin, dir, f32::INFINITY)
+            .is_some_and(|h| self.back_face(h.tri, dir))
+    }
+
     /// The texel at barycentrics (u, v) of triangle `tri`, reached along `dir`.
     pub fn land(&self, tri: u32, u: f32, v: f32, dir: Vec3) -> Landing {
         let g = self.geometry;
         let t = tri as usize;
-        let front = g.ng_ws[t].dot(dir) < 0.0;
-        if !front && !self.scene.materials[g.material[t] as usize].double_sided {
+        if self.back_face(tri, dir) {
             return Landing::BackFace;
         }
         let uv_lm = g.uv_lm_at(tri, u, v);
@@ -202,8 +220,7 @@ impl Surfaces<'_> {
                     continue;
                 };
                 let t = h.tri as usize;
-                let front = g.ng_ws[t].dot(dir(c * BATCH + i)) < 0.0;
-                *o = if !front && !self.scene.materials[g.material[t] as usize].double_sided {
+                *o = if self.back_face(h.tri, dir(c * BATCH + i)) {
                     Landing::BackFace
                 } else {
                     queries[n] = (
