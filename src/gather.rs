@@ -492,27 +492,37 @@ impl<'a> Gatherer<'a> {
                 *hit = cast(k, origin, dir);
             }
             s.land_many(&hits[..m], |i| group[i].2, &mut landings[..m]);
+            // What each hit reads, all loaded before any is used (the hit
+            // texels' light is megabytes away; see `land_many`).
+            let mut reads = [(Vec3::ZERO, Vec3::ZERO); GROUP];
+            for i in 0..m {
+                if let (Landing::Texel(h), Some(hit)) = (landings[i], &hits[i]) {
+                    reads[i] = self.read(h, hit, group[i].2);
+                }
+            }
             for i in 0..m {
                 if stop(&sums) {
                     break 'rays;
                 }
                 let ray = (k0 + i as u32, group[i]);
-                self.read_ray(&mut sums, &mut tl, ray, (landings[i], hits[i]), &mut cast);
+                let met = (landings[i], hits[i], reads[i]);
+                self.read_ray(&mut sums, &mut tl, ray, met, &mut cast);
             }
         }
         sums.finish(traced, extras.backface_tolerance)
     }
 
     /// Adds ray `k` from `p` (normal `ng`, offset origin `origin`) along
-    /// `dir` to a texel's sums, with what it met; and the texel's light
-    /// sample `k`, cast with `cast`.
+    /// `dir` to a texel's sums, with what it met (where it landed, its hit,
+    /// and [`Gatherer::read`]'s values there); and the texel's light sample
+    /// `k`, cast with `cast`.
     #[inline(always)]
     fn read_ray(
         &self,
         sums: &mut Sums,
         tl: &mut Option<TexelLights>,
         (k, (p, ng, dir, origin)): (u32, (Vec3, Vec3, Vec3, Vec3)),
-        (landing, hit): (Landing, Option<Hit>),
+        (landing, hit, (l, sampled)): (Landing, Option<Hit>, (Vec3, Vec3)),
         cast: &mut impl FnMut(u32, Vec3, Vec3) -> Option<Hit>,
     ) {
         let (s, extras) = (self.s, &self.extras);
@@ -530,7 +540,6 @@ impl<'a> Gatherer<'a> {
         }
         match (landing, hit) {
             (Landing::Texel(h), Some(hit)) => {
-                let (l, sampled) = self.read(h, &hit, dir);
                 // The cosine ray's MIS weight against the light samples.
                 let w = tl.as_ref().map_or(1.0, |tl| {
                     let pn = self.light_pdf(tl.lights, tl.patch, h, &hit, dir);
