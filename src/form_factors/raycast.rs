@@ -51,36 +51,36 @@ pub enum Landing {
 
 impl Surfaces<'_> {
     /// A uniformly distributed point on patch `i` (by area), with the
-    /// geometric normal there: a texel picked by area from `u.x`, then a
-    /// point in its square from `jitter`, kept if it lies on the texel's
-    /// main triangle (else the texel's centroid).
-    ///
-    /// Texels are picked by exposed area ([`Burial::exposed`]), so no
-    /// point starts inside a solid while the patch has an exposed part.
+    /// geometric normal there: a texel picked by area from `u`
+    /// ([`Surfaces::pick_texel`]), then a point in its square from
+    /// `jitter`, kept if it lies on the texel's main triangle (else the
+    /// texel's centroid).
     pub fn sample_patch(&self, i: usize, u: f32, jitter: Vec2) -> (Vec3, Vec3) {
         let texels = self.patches.texels_of(i);
+        self.sample_texel(texels[self.pick_texel(i, u)], jitter)
+    }
+
+    /// The texel of patch `i` (its index in the patch's texels) that `u`
+    /// picks by area. Texels are picked by exposed area
+    /// ([`Burial::exposed`]), so no point starts inside a solid while the
+    /// patch has an exposed part.
+    pub fn pick_texel(&self, i: usize, u: f32) -> usize {
+        let texels = self.patches.texels_of(i);
         let (area, open) = (self.patches.area[i], self.patches.exposed_area[i]);
-        let mut pick = texels[texels.len() - 1];
-        if open < area && open > 0.0 {
-            let mut target = u * open;
-            for &t in texels {
-                target -= self.texels.area[t as usize] * self.burial.exposed(t as usize);
-                if target <= 0.0 {
-                    pick = t;
-                    break;
-                }
-            }
-        } else {
-            let mut target = u * area;
-            for &t in texels {
-                target -= self.texels.area[t as usize];
-                if target <= 0.0 {
-                    pick = t;
-                    break;
-                }
+        let weigh = open < area && open > 0.0;
+        let mut target = u * if weigh { open } else { area };
+        for (k, &t) in texels.iter().enumerate() {
+            let a = self.texels.area[t as usize];
+            target -= if weigh {
+                a * self.burial.exposed(t as usize)
+            } else {
+                a
+            };
+            if target <= 0.0 {
+                return k;
             }
         }
-        self.sample_texel(pick, jitter)
+        texels.len() - 1
     }
 
     /// Patch `i` has no exposed area: every texel of it lies inside or
@@ -530,10 +530,15 @@ pub fn row(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> (Vec<(u32, f32)>, 
 pub fn row_rays(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> Vec<(Vec3, Vec3)> {
     let mut rng = Stream::new(seed, PURPOSE, i as u64);
     let area_strata = rng.permutation(n_rays);
+    // Each texel's sampler is made once, for all the rays from it.
+    let texels = s.patches.texels_of(i);
+    let mut samplers: Vec<Option<TexelSampler>> = vec![None; texels.len()];
     (0..n_rays)
         .map(|k| {
             let area_u = area_strata[k as usize] as f32 + rng.next_f32();
-            let (p, ng) = s.sample_patch(i, area_u / n_rays as f32, rng.next_vec2());
+            let pick = s.pick_texel(i, area_u / n_rays as f32);
+            let sampler = samplers[pick].get_or_insert_with(|| s.texel_sampler(texels[pick]));
+            let (p, ng) = sampler.sample(rng.next_vec2());
             let dir = to_world(
                 cosine_hemisphere(stratified(k, n_rays, rng.next_vec2())),
                 ng,
