@@ -18,7 +18,7 @@
 //! gather's hits read, where its extra noise averages out.
 
 use crate::config::EmitterSampling;
-use crate::form_factors::raycast::{Landing, Surfaces};
+use crate::form_factors::raycast::Surfaces;
 use crate::geometry::Geometry;
 use crate::raycast::{Hit, RayCaster};
 use crate::sampling::{
@@ -434,35 +434,35 @@ pub fn sky_light(
 
 /// What one cosine-weighted hemisphere ray from `p` (normal `n`) along
 /// `dir` brings to direct irradiance / π, before dividing by the rays cast:
-/// the sky if it escaped ([`escaped`]), a sampled emitter's radiance times
-/// its hemisphere MIS weight if it met one from the front, else nothing.
+/// the sky if it escaped (`hit` is `None`; [`escaped`]), a sampled
+/// emitter's radiance times its hemisphere MIS weight if it met one from
+/// the front, else nothing. Which texel the hit lands on does not matter,
+/// so the callers do not look it up.
 pub fn hemisphere_light(
     s: &Surfaces,
     lights: &Lights,
     mis: Mis,
     (p, n, dir): (Vec3, Vec3, Vec3),
-    traced: (Landing, Option<Hit>),
+    hit: Option<Hit>,
 ) -> Vec3 {
     let g = s.geometry;
-    match traced {
-        (Landing::Escaped, _) => escaped(lights, mis, n, dir),
-        (Landing::Texel(_), Some(hit)) | (Landing::Unmapped, Some(hit)) => {
-            let Some(k) = lights.emitter_index(hit.tri) else {
-                return Vec3::ZERO;
-            };
-            let tri = hit.tri as usize;
-            if g.ng_ws[tri].dot(dir) >= 0.0 {
-                return Vec3::ZERO;
-            }
-            let le = s
-                .scene
-                .emission_at(g.material[tri], g.uv0_at(hit.tri, hit.u, hit.v));
-            let p_b = n.dot(dir) / std::f32::consts::PI;
-            let p_l = lights.pdf_solid_angle(g, k, p, p + dir * hit.t, g.ng_ws[tri]);
-            le * mis.hemisphere_weight(p_l, p_b)
-        }
-        _ => Vec3::ZERO,
+    let Some(hit) = hit else {
+        return escaped(lights, mis, n, dir);
+    };
+    let Some(k) = lights.emitter_index(hit.tri) else {
+        return Vec3::ZERO;
+    };
+    let tri = hit.tri as usize;
+    let front = g.ng_ws[tri].dot(dir) < 0.0;
+    if !front {
+        return Vec3::ZERO;
     }
+    let le = s
+        .scene
+        .emission_at(g.material[tri], g.uv0_at(hit.tri, hit.u, hit.v));
+    let p_b = n.dot(dir) / std::f32::consts::PI;
+    let p_l = lights.pdf_solid_angle(g, k, p, p + dir * hit.t, g.ng_ws[tri]);
+    le * mis.hemisphere_weight(p_l, p_b)
 }
 
 /// Direct irradiance / π over a texel: punctual lights exactly at its
@@ -542,7 +542,8 @@ pub fn direct_at(
         let origin = offset_ray_origin(p, n);
         let dir = to_world(cosine_hemisphere(stratified(k, nh, rng.next_vec2())), n);
         rays += 1;
-        hemi += hemisphere_light(s, lights, mis, (p, n, dir), s.trace(origin, dir));
+        let hit = s.rays.closest_hit(origin, dir, f32::INFINITY);
+        hemi += hemisphere_light(s, lights, mis, (p, n, dir), hit);
     }
     if nh > 0 {
         hemi /= nh as f32;

@@ -532,7 +532,7 @@ impl<'a> Gatherer<'a> {
         let mut indirect = Vec3::ZERO;
         let mut ray_light = Vec3::ZERO;
         if let Some((lights, mis)) = self.direct {
-            ray_light = hemisphere_light(s, lights, mis, (p, ng, dir), (landing, hit));
+            ray_light = hemisphere_light(s, lights, mis, (p, ng, dir), hit);
             sums.light += ray_light;
         }
         if extras.ao_distance > 0.0 && hit.is_none_or(|h| h.t >= extras.ao_distance) {
