@@ -24,7 +24,7 @@ use crate::geometry::Geometry;
 use crate::lightmap::Lightmaps;
 use crate::raycast::RayCaster;
 use glam::{Vec2, Vec3};
-use std::collections::HashMap;
+use rayon::prelude::*;
 
 /// Faces meeting at a seam must be within this angle to be stitched.
 const MAX_SEAM_ANGLE_DEG: f32 = 30.0;
@@ -43,75 +43,92 @@ pub struct SeamSample {
 pub fn find(
     geometry: &Geometry,
     rays: &RayCaster,
-    valid: &dyn Fn(u32, Vec2) -> bool,
+    valid: &(dyn Fn(u32, Vec2) -> bool + Sync),
 ) -> Vec<SeamSample> {
     let q = |p: Vec3| (p * 1e5).round().as_i64vec3().to_array();
-    // Edge (sorted quantised endpoints) → (triangle, corner i, corner j).
+    // Every triangle edge under its key (sorted quantised endpoints), in
+    // key order and, within a key, triangle and corner order; an edge met
+    // by exactly two triangles is a candidate. (A sort, not a hash map:
+    // Sponza's 786 k edges took a quarter of a second to hash, alone.)
     type Edge = ([i64; 3], [i64; 3]);
-    let mut edges: HashMap<Edge, Vec<(u32, usize, usize)>> = HashMap::new();
-    for t in 0..geometry.len() {
-        let p = geometry.p_ws[t];
-        for (i, j) in [(0, 1), (1, 2), (2, 0)] {
-            let (a, b) = (q(p[i]), q(p[j]));
-            let key = if a <= b { (a, b) } else { (b, a) };
-            edges.entry(key).or_default().push((t as u32, i, j));
-        }
-    }
+    let mut edges: Vec<(Edge, u32, u8, u8)> = (0..geometry.len())
+        .into_par_iter()
+        .flat_map_iter(|t| {
+            let p = geometry.p_ws[t];
+            [(0u8, 1u8), (1, 2), (2, 0)].map(|(i, j)| {
+                let (a, b) = (q(p[i as usize]), q(p[j as usize]));
+                let key = if a <= b { (a, b) } else { (b, a) };
+                (key, t as u32, i, j)
+            })
+        })
+        .collect();
+    edges.par_sort_unstable_by_key(|&(key, t, i, _)| (key, t, i));
+    let pairs: Vec<[(u32, usize, usize); 2]> = edges
+        .chunk_by(|x, y| x.0 == y.0)
+        .filter_map(|run| <&[_; 2]>::try_from(run).ok())
+        .map(|run| run.map(|(_, t, i, j)| (t, i as usize, j as usize)))
+        .collect();
+    pairs
+        .par_iter()
+        .with_min_len(256)
+        .flat_map_iter(|&pair| seam_of(geometry, rays, valid, pair))
+        .collect()
+}
+
+/// The samples along the edge that triangles `a` (corners ia, ja) and `b`
+/// share, if it is a seam of one surface ([`find`]).
+fn seam_of(
+    geometry: &Geometry,
+    rays: &RayCaster,
+    valid: &(dyn Fn(u32, Vec2) -> bool + Sync),
+    [(ta, ia, ja), (tb, ib, jb)]: [(u32, usize, usize); 2],
+) -> Vec<SeamSample> {
+    let q = |p: Vec3| (p * 1e5).round().as_i64vec3().to_array();
     let cos_max = MAX_SEAM_ANGLE_DEG.to_radians().cos();
-    let mut keys: Vec<_> = edges.keys().copied().collect();
-    keys.sort_unstable();
+    let (ta_u, tb_u) = (ta as usize, tb as usize);
+    if geometry.ng_ws[ta_u].dot(geometry.ng_ws[tb_u]) < cos_max {
+        return Vec::new();
+    }
+    // Orient B's corners like A's (same world endpoints).
+    let pa = [geometry.p_ws[ta_u][ia], geometry.p_ws[ta_u][ja]];
+    let (ib, jb) = if q(geometry.p_ws[tb_u][ib]) == q(pa[0]) {
+        (ib, jb)
+    } else {
+        (jb, ib)
+    };
+    if !opposite_sides(geometry, ta_u, tb_u, pa) {
+        return Vec::new(); // folded back or overlapping: not one surface
+    }
+    let la = [geometry.uv_lm[ta_u][ia], geometry.uv_lm[ta_u][ja]];
+    let lb = [geometry.uv_lm[tb_u][ib], geometry.uv_lm[tb_u][jb]];
+    let same_page = geometry.page[ta_u] == geometry.page[tb_u];
+    if same_page && la[0].distance(lb[0]) < 1e-3 && la[1].distance(lb[1]) < 1e-3 {
+        return Vec::new(); // shared edge inside one chart: no seam
+    }
+    // Nudge sample points a little into each triangle, so each side
+    // reads its own chart's texels.
+    let centre_a = geometry.uv_lm[ta_u].iter().sum::<Vec2>() / 3.0;
+    let centre_b = geometry.uv_lm[tb_u].iter().sum::<Vec2>() / 3.0;
+    let len = la[0].distance(la[1]).max(lb[0].distance(lb[1]));
+    let n = (2.0 * len).ceil().max(1.0) as u32;
     let mut samples = Vec::new();
-    for key in keys {
-        let list = &edges[&key];
-        if list.len() != 2 {
-            continue;
+    for k in 0..n {
+        let s = (k as f32 + 0.5) / n as f32;
+        let ua = la[0].lerp(la[1], s);
+        let ub = lb[0].lerp(lb[1], s);
+        let ua = ua + (centre_a - ua).normalize_or_zero() * 0.01;
+        let ub = ub + (centre_b - ub).normalize_or_zero() * 0.01;
+        let (page_a, page_b) = (geometry.page[ta_u], geometry.page[tb_u]);
+        if !valid(page_a, ua) || !valid(page_b, ub) {
+            continue; // inside or under geometry on one side
         }
-        let (ta, ia, ja) = list[0];
-        let (tb, ib, jb) = list[1];
-        let (ta_u, tb_u) = (ta as usize, tb as usize);
-        if geometry.ng_ws[ta_u].dot(geometry.ng_ws[tb_u]) < cos_max {
-            continue;
+        if !in_sight(geometry, rays, (ta_u, tb_u), pa[0].lerp(pa[1], s)) {
+            continue; // a wall stands on the seam
         }
-        // Orient B's corners like A's (same world endpoints).
-        let pa = [geometry.p_ws[ta_u][ia], geometry.p_ws[ta_u][ja]];
-        let (ib, jb) = if q(geometry.p_ws[tb_u][ib]) == q(pa[0]) {
-            (ib, jb)
-        } else {
-            (jb, ib)
-        };
-        if !opposite_sides(geometry, ta_u, tb_u, pa) {
-            continue; // folded back or overlapping: not one surface
-        }
-        let la = [geometry.uv_lm[ta_u][ia], geometry.uv_lm[ta_u][ja]];
-        let lb = [geometry.uv_lm[tb_u][ib], geometry.uv_lm[tb_u][jb]];
-        let same_page = geometry.page[ta_u] == geometry.page[tb_u];
-        if same_page && la[0].distance(lb[0]) < 1e-3 && la[1].distance(lb[1]) < 1e-3 {
-            continue; // shared edge inside one chart: no seam
-        }
-        // Nudge sample points a little into each triangle, so each side
-        // reads its own chart's texels.
-        let centre_a = geometry.uv_lm[ta_u].iter().sum::<Vec2>() / 3.0;
-        let centre_b = geometry.uv_lm[tb_u].iter().sum::<Vec2>() / 3.0;
-        let len = la[0].distance(la[1]).max(lb[0].distance(lb[1]));
-        let n = (2.0 * len).ceil().max(1.0) as u32;
-        for k in 0..n {
-            let s = (k as f32 + 0.5) / n as f32;
-            let ua = la[0].lerp(la[1], s);
-            let ub = lb[0].lerp(lb[1], s);
-            let ua = ua + (centre_a - ua).normalize_or_zero() * 0.01;
-            let ub = ub + (centre_b - ub).normalize_or_zero() * 0.01;
-            let (page_a, page_b) = (geometry.page[ta_u], geometry.page[tb_u]);
-            if !valid(page_a, ua) || !valid(page_b, ub) {
-                continue; // inside or under geometry on one side
-            }
-            if !in_sight(geometry, rays, (ta_u, tb_u), pa[0].lerp(pa[1], s)) {
-                continue; // a wall stands on the seam
-            }
-            samples.push(SeamSample {
-                a: (page_a, ua),
-                b: (page_b, ub),
-            });
-        }
+        samples.push(SeamSample {
+            a: (page_a, ua),
+            b: (page_b, ub),
+        });
     }
     samples
 }
