@@ -457,9 +457,9 @@ pub fn compute(s: &Surfaces, seed: u64, validity_rays: u32, tolerance: f32) -> B
         burial: &burial,
         ..*s
     };
-    let (back, rays) = crate::gather::validity(&folded, validity_rays, seed);
-    let valid = crate::gather::valid_from_counts(&back, validity_rays, tolerance);
-    burial.enclosed = back.iter().map(|&b| b as u32 >= validity_rays).collect();
+    let judged = crate::gather::validity(&folded, validity_rays, seed, tolerance);
+    let (valid, rays) = (judged.valid, judged.rays);
+    burial.enclosed = judged.enclosed;
     for (e, &v) in burial.exposed.iter_mut().zip(&valid) {
         if !v {
             *e = 0.0;

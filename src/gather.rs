@@ -115,44 +115,86 @@ pub const VALIDITY_RAYS: u32 = 8;
 /// Stream purpose id of the validity estimate's rays.
 const VALIDITY_PURPOSE: u64 = 11;
 
-/// A cheap first estimate of texel validity (the gather's rule on `rays`
-/// of its rays per texel), so texels buried in geometry can be filled in
-/// the first-pass lightmap before the gather reads it. Returns how many of
-/// each texel's rays met back faces, and the rays cast.
-pub fn validity(s: &Surfaces, rays: u32, seed: u64) -> (Vec<u8>, u64) {
+/// A cheap first estimate of texel validity (the gather's rule with
+/// back-face `tolerance` on `rays` of its rays per texel), so texels buried
+/// in geometry can be filled in the first-pass lightmap before the gather
+/// reads it. Returns each texel's validity, whether every one of its rays
+/// met a back face (it lies inside a solid), and the rays cast.
+///
+/// A texel stops casting once both answers are certain: valid when even
+/// its remaining rays all meeting back faces would not make too many,
+/// invalid (and not enclosed) once too many have and one has not. The
+/// answers are those of casting every ray; an open texel casts half.
+pub fn validity(s: &Surfaces, rays: u32, seed: u64, tolerance: f32) -> Validity {
     let n = s.texels.len();
     let chunk = 1024;
-    let rays = rays.min(u8::MAX as u32);
-    let parts: Vec<Vec<u8>> = (0..n.div_ceil(chunk))
+    let parts: Vec<Vec<(bool, bool, u32)>> = (0..n.div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
             let range = c * chunk..((c + 1) * chunk).min(n);
-            let mut out = Vec::with_capacity(range.len());
-            for t in range {
-                let nets = texel_nets(seed, VALIDITY_PURPOSE, t);
-                let sampler = s.texel_sampler(t as u32);
-                let mut back = 0u8;
-                for k in 0..rays {
-                    let (p, ng, dir) = texel_ray(&sampler, k, &nets);
-                    if s.meets_back_face(offset_ray_origin(p, ng), dir) {
-                        back += 1;
+            range
+                .map(|t| {
+                    let nets = texel_nets(seed, VALIDITY_PURPOSE, t);
+                    let sampler = s.texel_sampler(t as u32);
+                    let (mut back, mut cast) = (0u32, 0u32);
+                    for k in 0..rays {
+                        let (p, ng, dir) = texel_ray(&sampler, k, &nets);
+                        cast += 1;
+                        if s.meets_back_face(offset_ray_origin(p, ng), dir) {
+                            back += 1;
+                        }
+                        if validity_settled(back, cast, rays, tolerance) {
+                            break;
+                        }
                     }
-                }
-                out.push(back);
-            }
-            out
+                    let (valid, enclosed) = validity_answers(back, rays, tolerance);
+                    (valid, enclosed, cast)
+                })
+                .collect()
         })
         .collect();
-    let cast = n as u64 * rays as u64;
-    (parts.into_iter().flatten().collect(), cast)
+    let mut v = Validity {
+        valid: Vec::with_capacity(n),
+        enclosed: Vec::with_capacity(n),
+        rays: 0,
+    };
+    for (valid, enclosed, cast) in parts.into_iter().flatten() {
+        v.valid.push(valid);
+        v.enclosed.push(enclosed);
+        v.rays += cast as u64;
+    }
+    v
 }
 
-/// Texel validity from [`validity`]'s back-face counts of `rays` rays each,
-/// with the back-face `tolerance`.
-pub fn valid_from_counts(back: &[u8], rays: u32, tolerance: f32) -> Vec<bool> {
-    back.iter()
-        .map(|&b| !too_many_back_faces(b as u32, rays, tolerance))
-        .collect()
+/// Whether [`validity_answers`] for a texel are certain after `cast` of its
+/// `rays` rays, `back` of them having met back faces: valid even if every
+/// ray left met one, or invalid already with one ray that did not (so not
+/// enclosed either).
+fn validity_settled(back: u32, cast: u32, rays: u32, tolerance: f32) -> bool {
+    let left = rays - cast;
+    let surely_valid = !too_many_back_faces(back + left, rays, tolerance);
+    let surely_invalid = too_many_back_faces(back, rays, tolerance) && back < cast;
+    left > 0 && (surely_valid || surely_invalid)
+}
+
+/// A texel's validity and whether it is enclosed (all of its `rays` rays
+/// met back faces), from the `back` of them that did.
+fn validity_answers(back: u32, rays: u32, tolerance: f32) -> (bool, bool) {
+    (
+        !too_many_back_faces(back, rays, tolerance),
+        back == rays && rays > 0,
+    )
+}
+
+/// [`validity`]'s answers.
+#[derive(Clone, Debug, Default)]
+pub struct Validity {
+    /// Per texel: not too many of its rays met back faces.
+    pub valid: Vec<bool>,
+    /// Per texel: every one of its rays met a back face.
+    pub enclosed: Vec<bool>,
+    /// Rays cast.
+    pub rays: u64,
 }
 
 /// The gathered indirect light.
@@ -775,4 +817,39 @@ pub fn gather(
     advance: &(dyn Fn(u64) + Sync),
 ) -> Gathered {
     Gatherer::new(s, first_pass, sampled, rays, seed, extras, direct).gather_cpu(advance)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Stopping once [`validity_settled`] says so gives the answers of
+    /// casting every ray: every sequence of back / front outcomes of 8 rays,
+    /// at Unity's tolerance, radbake's and a high one.
+    #[test]
+    fn validity_stops_only_when_its_answers_are_settled() {
+        let rays = 8u32;
+        let mut stopped_early = 0;
+        for tolerance in [0.0, 0.1, 0.5, 0.9] {
+            for outcomes in 0u32..1 << rays {
+                let back_of = |k: u32| outcomes >> k & 1;
+                let all: u32 = (0..rays).map(back_of).sum();
+                let (mut back, mut cast) = (0, 0);
+                for k in 0..rays {
+                    cast += 1;
+                    back += back_of(k);
+                    if validity_settled(back, cast, rays, tolerance) {
+                        break;
+                    }
+                }
+                stopped_early += (cast < rays) as u32;
+                assert_eq!(
+                    validity_answers(back, rays, tolerance),
+                    validity_answers(all, rays, tolerance),
+                    "outcomes {outcomes:08b}, tolerance {tolerance}, stopped after {cast}"
+                );
+            }
+        }
+        assert!(stopped_early > 500, "{stopped_early}");
+    }
 }

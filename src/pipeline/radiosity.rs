@@ -154,11 +154,13 @@ pub fn run(
     // buried texels take their neighbours' H₁ before anything reads them.
     log.begin("validity", s.texels.len() as u64);
     let (pre, validity_rays) = if s.burial.valid.is_empty() {
-        let (back, rays) = gather::validity(s, gather::VALIDITY_RAYS, config.seed);
-        (
-            gather::valid_from_counts(&back, gather::VALIDITY_RAYS, config.backface_tolerance),
-            rays,
-        )
+        let v = gather::validity(
+            s,
+            gather::VALIDITY_RAYS,
+            config.seed,
+            config.backface_tolerance,
+        );
+        (v.valid, v.rays)
     } else {
         // Judged already by the burial stage, from folded points.
         (s.burial.valid.clone(), s.burial.stats.validity_rays)
