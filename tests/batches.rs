@@ -8,14 +8,17 @@ mod common;
 
 use common::scene_path;
 use glam::Vec3;
+use radbake::form_factors::raycast::Surfaces;
 use radbake::form_factors::raycast::{self, Landing};
 use radbake::gather::{Extras, Gatherer};
 use radbake::raycast::batch::CpuBatches;
 use radbake::raycast::RayCaster;
-use radbake::{BakeConfig, Silent};
+use radbake::scene::Scene;
+use radbake::{Bake, BakeConfig, Silent};
 
-#[test]
-fn batched_form_factors_and_gather_equal_the_cpu_path() {
+/// Runs `check` on the Cornell box baked at 24 texels/m without a final
+/// gather (its scene, settings, bake, and surfaces over a CPU caster).
+fn on_cornell(check: impl FnOnce(&Scene, &BakeConfig, &Bake, &Surfaces, &RayCaster)) {
     let scene = radbake::scene::load(&scene_path("cornell_box.gltf"), &Default::default())
         .expect("scene loads");
     let config = BakeConfig {
@@ -26,47 +29,51 @@ fn batched_form_factors_and_gather_equal_the_cpu_path() {
     let bake = radbake::bake(&scene, &config, &Silent).expect("bake");
     let rays = RayCaster::new(&scene, &bake.geometry);
     let s = bake.surfaces(&rays);
-    // Batches of 13 items: neither patches nor texels divide evenly.
-    let batches = CpuBatches {
-        rays: &rays,
-        batch: 13,
-    };
+    check(&scene, &config, &bake, &s, &rays);
+}
 
-    let cpu = raycast::compute(&s, 64, 7, &|_| {});
-    let batched = raycast::compute_batched(&s, &batches, 64, 7, &|_| {}).expect("batched F");
-    assert!(
-        bake.patches.len() > 13 * 3 && bake.patches.len() % 13 != 0,
-        "several batches, the last one short ({} patches)",
-        bake.patches.len()
-    );
-    assert_eq!(cpu.matrix.row_offsets(), batched.matrix.row_offsets());
-    assert_eq!(cpu.matrix.col_indices(), batched.matrix.col_indices());
-    assert_eq!(cpu.matrix.values(), batched.matrix.values());
-    assert_eq!(cpu.stats.rays, batched.stats.rays);
-    assert!(cpu.nnz() > 0);
+#[test]
+fn batched_form_factors_and_gather_equal_the_cpu_path() {
+    on_cornell(|scene, config, bake, s, rays| {
+        // Batches of 13 items: neither patches nor texels divide evenly.
+        let batches = CpuBatches { rays, batch: 13 };
 
-    // Any first pass will do: the bake's lightmap.
-    let first = &bake.maps.lightmaps.texel_values;
-    let sampled = radbake::direct::sampled_materials(&scene, &bake.geometry, config.emitters);
-    let extras = Extras {
-        directional: true,
-        sky: Vec3::new(0.2, 0.3, 0.4).into(),
-        ao_distance: 0.3,
-        ..Extras::default()
-    };
-    let gatherer = Gatherer::new(&s, first, &sampled, 32, 7, extras, None);
-    let a = gatherer.gather_cpu(&|_| {});
-    let b = gatherer
-        .gather_batched(&batches, &|_| {})
-        .expect("batched gather");
-    assert_eq!(a.rays, b.rays);
-    assert_eq!(a.indirect, b.indirect);
-    assert_eq!(a.valid, b.valid);
-    assert_eq!(a.variance, b.variance);
-    assert_eq!(a.directional, b.directional);
-    assert_eq!(a.ao, b.ao);
-    assert!(a.indirect.iter().any(|v| v.max_element() > 0.0));
-    assert!(!a.directional.is_empty() && !a.ao.is_empty());
+        let cpu = raycast::compute(s, 64, 7, &|_| {});
+        let batched = raycast::compute_batched(s, &batches, 64, 7, &|_| {}).expect("batched F");
+        assert!(
+            bake.patches.len() > 13 * 3 && bake.patches.len() % 13 != 0,
+            "several batches, the last one short ({} patches)",
+            bake.patches.len()
+        );
+        assert_eq!(cpu.matrix.row_offsets(), batched.matrix.row_offsets());
+        assert_eq!(cpu.matrix.col_indices(), batched.matrix.col_indices());
+        assert_eq!(cpu.matrix.values(), batched.matrix.values());
+        assert_eq!(cpu.stats.rays, batched.stats.rays);
+        assert!(cpu.nnz() > 0);
+
+        // Any first pass will do: the bake's lightmap.
+        let first = &bake.maps.lightmaps.texel_values;
+        let sampled = radbake::direct::sampled_materials(scene, &bake.geometry, config.emitters);
+        let extras = Extras {
+            directional: true,
+            sky: Vec3::new(0.2, 0.3, 0.4).into(),
+            ao_distance: 0.3,
+            ..Extras::default()
+        };
+        let gatherer = Gatherer::new(s, first, &sampled, 32, 7, extras, None);
+        let a = gatherer.gather_cpu(&|_| {});
+        let b = gatherer
+            .gather_batched(&batches, &|_| {})
+            .expect("batched gather");
+        assert_eq!(a.rays, b.rays);
+        assert_eq!(a.indirect, b.indirect);
+        assert_eq!(a.valid, b.valid);
+        assert_eq!(a.variance, b.variance);
+        assert_eq!(a.directional, b.directional);
+        assert_eq!(a.ao, b.ao);
+        assert!(a.indirect.iter().any(|v| v.max_element() > 0.0));
+        assert!(!a.directional.is_empty() && !a.ao.is_empty());
+    });
 }
 
 /// [`Surfaces::land_many`](radbake::form_factors::raycast::Surfaces::land_many)
@@ -75,41 +82,33 @@ fn batched_form_factors_and_gather_equal_the_cpu_path() {
 /// meet fronts, backs (the blocks' insides), unmapped and split texels.
 #[test]
 fn landing_hits_together_equals_landing_each() {
-    let scene = radbake::scene::load(&scene_path("cornell_box.gltf"), &Default::default())
-        .expect("scene loads");
-    let config = BakeConfig {
-        texels_per_meter: 24.0,
-        final_gather: 0,
-        ..BakeConfig::default()
-    };
-    let bake = radbake::bake(&scene, &config, &Silent).expect("bake");
-    let rays = RayCaster::new(&scene, &bake.geometry);
-    let s = bake.surfaces(&rays);
-    let (lo, hi) = bake.geometry.p_ws.iter().flatten().fold(
-        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    let mut rng = radbake::sampling::Stream::new(5, 0, 0);
-    let cast: Vec<(Vec3, Option<radbake::raycast::Hit>)> = (0..20_000)
-        .map(|_| {
-            let o = lo + (hi - lo) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-            let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
-            let d = d.normalize_or(Vec3::Z);
-            (d, rays.closest_hit(o, d, f32::INFINITY))
-        })
-        .collect();
-    let hits: Vec<_> = cast.iter().map(|c| c.1).collect();
-    // 20,000 is not a multiple of the passes' 16: the last pass is short.
-    let mut together = vec![Landing::Escaped; hits.len()];
-    s.land_many(&hits, |i| cast[i].0, &mut together);
-    let alone: Vec<Landing> = cast
-        .iter()
-        .map(|&(d, h)| h.map_or(Landing::Escaped, |h| s.land(h.tri, h.u, h.v, d)))
-        .collect();
-    assert_eq!(together, alone);
-    let count = |f: &dyn Fn(&Landing) -> bool| alone.iter().filter(|l| f(l)).count();
-    assert!(count(&|l| matches!(l, Landing::BackFace)) > 0);
-    assert!(count(&|l| matches!(l, Landing::Escaped)) > 0);
-    let split = count(&|l| matches!(l, Landing::Texel(t) if bake.burial.split(*t as usize)));
-    assert!(split > 0, "some hits land on split texels");
+    on_cornell(|_, _, bake, s, rays| {
+        let (lo, hi) = bake.geometry.p_ws.iter().flatten().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        );
+        let mut rng = radbake::sampling::Stream::new(5, 0, 0);
+        let cast: Vec<(Vec3, Option<radbake::raycast::Hit>)> = (0..20_000)
+            .map(|_| {
+                let o = lo + (hi - lo) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                let d = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+                let d = d.normalize_or(Vec3::Z);
+                (d, rays.closest_hit(o, d, f32::INFINITY))
+            })
+            .collect();
+        let hits: Vec<_> = cast.iter().map(|c| c.1).collect();
+        // 20,000 is not a multiple of the passes' 16: the last pass is short.
+        let mut together = vec![Landing::Escaped; hits.len()];
+        s.land_many(&hits, |i| cast[i].0, &mut together);
+        let alone: Vec<Landing> = cast
+            .iter()
+            .map(|&(d, h)| h.map_or(Landing::Escaped, |h| s.land(h.tri, h.u, h.v, d)))
+            .collect();
+        assert_eq!(together, alone);
+        let count = |f: &dyn Fn(&Landing) -> bool| alone.iter().filter(|l| f(l)).count();
+        assert!(count(&|l| matches!(l, Landing::BackFace)) > 0);
+        assert!(count(&|l| matches!(l, Landing::Escaped)) > 0);
+        let split = count(&|l| matches!(l, Landing::Texel(t) if bake.burial.split(*t as usize)));
+        assert!(split > 0, "some hits land on split texels");
+    });
 }
