@@ -287,6 +287,11 @@ pub struct BakeConfig {
     /// with its cosine rays by MIS ([`crate::nee`]); needs a stored
     /// form-factor matrix (not `solver = "progressive"`).
     pub gather_nee: bool,
+    /// The final gather's near field, in texels (1/`texels_per_meter`):
+    /// a ray that lands closer reads the local lights' direct light
+    /// (emitters, point and spot lights) at its hit point, not the hit
+    /// texel's mean ([`crate::gather::NearField`]); 0: off.
+    pub gather_near_field: f32,
     /// Make both sides of UV seams on continuous surfaces agree.
     pub stitch_seams: bool,
     /// Fold every texel's sample points out of walls and solids that cross
@@ -503,6 +508,7 @@ impl BakeConfig {
             final_gather: 128,
             gather_threshold: 0.005,
             gather_nee: false,
+            gather_near_field: 1.0,
             stitch_seams: true,
             burial_planes: true,
             backface_tolerance: 0.5,
@@ -644,6 +650,9 @@ impl BakeConfig {
         }
         if !(self.gather_threshold >= 0.0 && self.gather_threshold < 1.0) {
             return bad("gather_threshold", "must be in [0, 1)");
+        }
+        if !(self.gather_near_field >= 0.0 && self.gather_near_field <= 64.0) {
+            return bad("gather_near_field", "must be in [0, 64]");
         }
         if !(self.backface_tolerance > 0.0 && self.backface_tolerance <= 1.0) {
             return bad("backface_tolerance", "must be in (0, 1]");

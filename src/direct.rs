@@ -162,6 +162,12 @@ impl Lights {
         }
     }
 
+    /// True when there are local lights: emitters, or point or spot
+    /// lights ([`Light::is_local`]).
+    pub fn has_local(&self) -> bool {
+        !self.emitters.is_empty() || self.punctual.iter().any(|l| l.is_local())
+    }
+
     /// True when nothing emits.
     pub fn is_empty(&self) -> bool {
         self.emitters.is_empty() && self.punctual.is_empty() && self.sky.is_black()
@@ -487,12 +493,12 @@ pub fn direct_at(
     let mut h = Vec3::ZERO;
     let mut mixed = Vec3::ZERO;
     let mut rays = 0u64;
-    let pi = std::f32::consts::PI;
 
     // Punctual lights, averaged over the supersampling points; their
     // directional part (see [`Directional`]) is exact: a light of
     // irradiance/π h from ω adds h/cos θ · ω.
     let mut dir_part: Directional = [Vec3::ZERO; 3];
+    let mut local = Vec3::ZERO;
     let w = 1.0 / punctual_points.len().max(1) as f32;
     for &(p, n) in punctual_points {
         for light in &lights.punctual {
@@ -504,6 +510,9 @@ pub fn direct_at(
                     continue;
                 }
                 let value = value * visible;
+                if light.is_local() {
+                    local += value * w;
+                }
                 if light.mode.is_mixed() {
                     mixed += value * w;
                 } else {
@@ -523,6 +532,7 @@ pub fn direct_at(
             light: h,
             mixed,
             hemisphere: Vec3::ZERO,
+            local,
             directional: dir_part,
             rays,
         };
@@ -530,6 +540,7 @@ pub fn direct_at(
 
     // Hemisphere (BRDF) samples: emitters with MIS weights, sky unweighted.
     let mut hemi = Vec3::ZERO;
+    let mut hemi_local = Vec3::ZERO;
     let nh = hemisphere.len() as u32;
     // Positions paired with direction strata by a random permutation, as
     // in the final gather: any fixed pairing (this used to be reverse
@@ -543,10 +554,16 @@ pub fn direct_at(
         let dir = to_world(cosine_hemisphere(stratified(k, nh, rng.next_vec2())), n);
         rays += 1;
         let hit = s.rays.closest_hit(origin, dir, f32::INFINITY);
-        hemi += hemisphere_light(s, lights, mis, (p, n, dir), hit);
+        let v = hemisphere_light(s, lights, mis, (p, n, dir), hit);
+        hemi += v;
+        if hit.is_some() {
+            // An emitter's (a ray that met a surface brings no sky).
+            hemi_local += v;
+        }
     }
     if nh > 0 {
         hemi /= nh as f32;
+        local += hemi_local / nh as f32;
     }
 
     // Light samples: a Hammersley set with a random rotation per point,
@@ -557,32 +574,13 @@ pub fn direct_at(
         let samples = points.len() as u32;
         let shift = rng.next_vec2();
         for k in 0..samples {
-            let (p, n) = points[k as usize];
             let Some(ls) = lights.sample(g, hammersley(k, samples, shift)) else {
                 break;
             };
-            let (e, tri, bu, bv, q, nq) = (ls.k, ls.tri, ls.u, ls.v, ls.point, ls.normal);
-            let d = q - p;
-            let dist2 = d.length_squared();
-            let dist = dist2.sqrt();
-            let dir = d / dist;
-            let cos_p = n.dot(dir);
-            let cos_q = nq.dot(-dir);
-            if cos_p <= 0.0 || cos_q <= 0.0 {
-                continue;
-            }
-            rays += 1;
-            let (so, sd, len) = shadow_ray(p, n, q, nq);
-            if !s.rays.unoccluded(so, sd, len) {
-                continue;
-            }
-            let le = s
-                .scene
-                .emission_at(g.material[tri as usize], g.uv0_at(tri, bu, bv));
-            let p_l = lights.pdf_solid_angle(g, e, p, q, nq);
-            let p_b = cos_p / pi;
-            // f / p_l · w_l / n_l with f = L cos_p / π.
-            h += le * (p_b / p_l) * (1.0 - mis.hemisphere_weight(p_l, p_b)) / mis.light as f32;
+            let (light, cast) = emitter_sample(s, lights, mis, points[k as usize], &ls);
+            h += light;
+            local += light;
+            rays += cast;
         }
     }
     // A sky map's light samples (a uniform sky has only the cosine rays,
@@ -597,9 +595,93 @@ pub fn direct_at(
         light: h,
         mixed,
         hemisphere: hemi,
+        local,
         directional: dir_part,
         rays,
     }
+}
+
+/// What light sample `ls` on the emitters brings to irradiance / π at `p`
+/// (normal `n`), before dividing by the samples: L cos θ / π / p_l × the
+/// light estimator's MIS weight against the cosine rays, `mis.light`
+/// samples in all (Veach 1997, §9.2); nothing where it is behind either
+/// surface or shadowed. Returns it and the shadow rays cast (0 or 1).
+fn emitter_sample(
+    s: &Surfaces,
+    lights: &Lights,
+    mis: Mis,
+    (p, n): (Vec3, Vec3),
+    ls: &EmitterSample,
+) -> (Vec3, u64) {
+    let g = s.geometry;
+    let (e, tri, q, nq) = (ls.k, ls.tri, ls.point, ls.normal);
+    let d = q - p;
+    let dist = d.length();
+    let dir = d / dist;
+    let cos_p = n.dot(dir);
+    let cos_q = nq.dot(-dir);
+    if cos_p <= 0.0 || cos_q <= 0.0 {
+        return (Vec3::ZERO, 0);
+    }
+    let (so, sd, len) = shadow_ray(p, n, q, nq);
+    if !s.rays.unoccluded(so, sd, len) {
+        return (Vec3::ZERO, 1);
+    }
+    let le = s
+        .scene
+        .emission_at(g.material[tri as usize], g.uv0_at(tri, ls.u, ls.v));
+    let p_l = lights.pdf_solid_angle(g, e, p, q, nq);
+    let p_b = cos_p / std::f32::consts::PI;
+    // f / p_l · w_l / n_l with f = L cos_p / π.
+    let light = le * (p_b / p_l) * (1.0 - mis.hemisphere_weight(p_l, p_b)) / mis.light as f32;
+    (light, 1)
+}
+
+/// The local lights' direct irradiance / π at one point `p` of a surface
+/// (normal `n`; [`Lights::has_local`]): one sample of what [`direct_at`]
+/// averages over a texel into [`TexelDirect::local`]. Point and spot
+/// lights (baked and mixed) with their shadow rays; the emitters by one
+/// light sample and one cosine-weighted ray, combined by MIS with counts
+/// one and one (Veach 1997, §9.2; the ray counts only where it meets an
+/// emitter). The final gather's near field reads it where a ray lands
+/// closer than a texel's mean can stand for ([`crate::gather::NearField`]).
+/// Returns it and the rays cast.
+pub fn local_light_at(
+    s: &Surfaces,
+    lights: &Lights,
+    (p, n): (Vec3, Vec3),
+    rng: &mut Stream,
+) -> (Vec3, u64) {
+    let mut h = Vec3::ZERO;
+    let mut rays = 0u64;
+    for light in lights.punctual.iter().filter(|l| l.is_local()) {
+        if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
+            let (visible, cast) = light_visibility(s.rays, light, &[(p, n, 1.0, dir, dist)], rng);
+            rays += cast;
+            h += value * visible;
+        }
+    }
+    if lights.emitters.is_empty() {
+        return (h, rays);
+    }
+    let mis = Mis {
+        light: 1,
+        hemisphere: 1,
+    };
+    if let Some(ls) = lights.sample(s.geometry, rng.next_vec2()) {
+        let (light, cast) = emitter_sample(s, lights, mis, (p, n), &ls);
+        h += light;
+        rays += cast;
+    }
+    let dir = to_world(cosine_hemisphere(rng.next_vec2()), n);
+    rays += 1;
+    if let Some(hit) = s
+        .rays
+        .closest_hit(offset_ray_origin(p, n), dir, f32::INFINITY)
+    {
+        h += hemisphere_light(s, lights, mis, (p, n, dir), Some(hit));
+    }
+    (h, rays)
 }
 
 /// One texel's direct light, its parts apart (irradiance / π each).
@@ -612,6 +694,11 @@ pub struct TexelDirect {
     pub mixed: Vec3,
     /// Sky and the emitters' hemisphere samples.
     pub hemisphere: Vec3,
+    /// The part of `light + mixed + hemisphere` from local lights
+    /// ([`Lights::has_local`]: emitters, point and spot lights), whose
+    /// light varies as 1/r² near them: what the final gather's near field
+    /// re-reads at the point ([`local_light_at`]).
+    pub local: Vec3,
     /// The baked punctual lights' directional part.
     pub directional: Directional,
     /// Rays cast.
@@ -643,6 +730,8 @@ pub struct Direct {
     /// Mixed lights' direct light ([`TexelDirect::mixed`]; irradiance / π),
     /// in none of the other parts.
     pub mixed: Vec<Vec3>,
+    /// The local lights' part of the others ([`TexelDirect::local`]).
+    pub local: Vec<Vec3>,
     /// Baked punctual lights' directional part.
     pub directional: Vec<Directional>,
     /// Rays cast.
@@ -707,6 +796,9 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> Texe
             continue;
         }
         let value = seen.unshadowed * seen.visible;
+        if light.is_local() {
+            out.local += value;
+        }
         if light.mode.is_mixed() {
             out.mixed += value;
             continue;
@@ -921,6 +1013,7 @@ pub fn texel_range(
                 }
                 d.light += pieces.light;
                 d.mixed += pieces.mixed;
+                d.local += pieces.local;
                 d.rays += pieces.rays;
                 vals.push(d);
             }
@@ -938,6 +1031,7 @@ pub fn assemble(texels: Vec<TexelDirect>) -> Direct {
         light: Vec::with_capacity(n),
         hemisphere: Vec::with_capacity(n),
         mixed: Vec::with_capacity(n),
+        local: Vec::with_capacity(n),
         directional: Vec::with_capacity(n),
         rays: 0,
     };
@@ -945,6 +1039,7 @@ pub fn assemble(texels: Vec<TexelDirect>) -> Direct {
         d.light.push(t.light);
         d.hemisphere.push(t.hemisphere);
         d.mixed.push(t.mixed);
+        d.local.push(t.local);
         d.directional.push(t.directional);
         d.rays += t.rays;
     }

@@ -198,6 +198,7 @@ fn help_documents_flags() {
         "--probe-budget",
         "--probe-rays",
         "--gather-threshold",
+        "--gather-near-field",
     ] {
         assert!(text.contains(flag), "{flag} not in --help");
     }
@@ -212,7 +213,16 @@ fn stats_prints_stages_rays_and_peak_memory() {
     let r = bake(
         &scene_path("cornell_box.gltf"),
         &dir.join("out"),
-        &["--stats", "-q", "--final-gather", "16"],
+        // No near field: a close hit's light samples would come on top of
+        // the gather's own rays counted below.
+        &[
+            "--stats",
+            "-q",
+            "--final-gather",
+            "16",
+            "--gather-near-field",
+            "0",
+        ],
     );
     assert_eq!(r.code, 0, "{}", r.stderr);
     for needle in [

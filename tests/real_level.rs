@@ -1,10 +1,10 @@
 //! A game level against the independent irradiance meter: the generated
 //! atrium (`examples/gen_level`: floors, outer walls, columns and arches,
 //! emissive wall lamps, a sun), baked at 4 texels/m. Every instance of at
-//! least 10 m² must have its `mean` within 5 % of the meter, except the
-//! lamps: thin boxes whose 5 cm side faces are a fifth of a texel wide,
-//! which the lightmap cannot resolve (their `mean` reads 31 % low; see the
-//! README's "Not yet done").
+//! least 10 m² must have its `mean` within 5 % of the meter, the lamps
+//! too: thin boxes whose 5 cm side faces, a fifth of a texel wide, gather
+//! the light of the wall strip beside them through the near field
+//! (`tests/near_field.rs`; without it the lamps read 16 % low).
 
 mod common;
 #[path = "benches/common/level.rs"]
@@ -28,9 +28,9 @@ fn level_means_match_the_meter() {
     let big: Vec<_> = bake
         .instance_reports()
         .into_iter()
-        .filter(|r| r.area >= 10.0 && r.node != "lamps")
+        .filter(|r| r.area >= 10.0)
         .collect();
-    assert!(big.len() >= 5, "floors, walls, roof: {}", big.len());
+    assert!(big.len() >= 6, "lamps, floors, walls, roof: {}", big.len());
     let nodes: Vec<String> = big.iter().map(|r| r.node.clone()).collect();
     let settings = MeterSettings {
         samples: 40_000,

@@ -140,6 +140,10 @@ pub struct BakeArgs {
     /// estimation, MIS with the cosine rays): true or false [default: false].
     #[arg(long)]
     pub gather_nee: Option<bool>,
+    /// Final gather: rays that land closer than this many texels read the emitters' and
+    /// point/spot lights' direct light at the hit point, not the hit texel's mean; 0: off [default: 1].
+    #[arg(long, value_name = "TEXELS")]
+    pub gather_near_field: Option<f32>,
     /// Emissive surfaces: sampled per texel (`direct`), through the radiosity solve (`radiosity`),
     /// or `auto`: direct when a material covers ≤ 2 % of the surface [default: auto].
     #[arg(long, value_enum)]
@@ -276,6 +280,7 @@ impl BakeArgs {
             final_gather,
             gather_threshold,
             gather_nee,
+            gather_near_field,
             ktx2,
             probes,
             probe_spacing,

@@ -176,6 +176,18 @@ pub fn run(
 
     log.begin("final_gather", s.texels.len() as u64);
     let gatherer = gatherer(s, &first, &direct, config, sky);
+    // Close hits read the local lights at the point (see `NearField`).
+    let near = config.gather_near_field / config.texels_per_meter;
+    let gatherer = if near > 0.0 && direct.lights.has_local() {
+        gatherer.with_near(gather::NearField {
+            direct: &direct.parts.local,
+            valid: &pre,
+            lights: &direct.lights,
+            radius: near,
+        })
+    } else {
+        gatherer
+    };
     // Light samples towards the solved bright patches, picked by the rows
     // of F (so only with a stored matrix).
     let lights = match &patch_light.form_factors {

@@ -326,6 +326,12 @@ impl Light {
             LightKind::Point | LightKind::Spot { .. } => self.radius > 0.0,
         }
     }
+
+    /// True for a point or spot light: a local light, whose irradiance
+    /// varies as 1/r² near it (a directional light's only with shadows).
+    pub fn is_local(&self) -> bool {
+        !matches!(self.kind, LightKind::Directional)
+    }
 }
 
 /// A perspective camera placed in the world.
