@@ -10,7 +10,11 @@
 //! - *mixed*: both.
 //!
 //! It prints the counts overall and per instance (largest invalid area
-//! first), and the distribution of the back-face distances.
+//! first), the distribution of the back-face distances, and how enclosed
+//! the invalid texels are: *sealed* where all 64 rays met back faces (a
+//! cavity closed by one-sided shells, or the inside of a solid), *mostly*
+//! where at least 90 % did, *open* where more than 10 % met front faces or
+//! the sky.
 //!
 //!     cargo run --release --example validity_probe -- Sponza.lit.gltf texels_per_meter=4 near=0.5
 
@@ -41,6 +45,9 @@ fn main() -> anyhow::Result<()> {
     // Per instance: (invalid area, near, far, mixed, none) areas.
     let mut per = vec![[0.0f64; 5]; scene.instances.len()];
     let mut dists: Vec<f32> = Vec::new();
+    // Invalid area by enclosure (sealed, mostly, open), over all invalid
+    // texels and over the far-only ones.
+    let mut enclosure = [[0.0f64; 3]; 2];
     let (mut invalid, mut total) = (0u64, 0u64);
     for t in 0..bake.texels.len() {
         total += 1;
@@ -65,6 +72,18 @@ fn main() -> anyhow::Result<()> {
             }
         }
         let a = bake.texels.area[t] as f64;
+        let back = n_near + n_far;
+        let e = if back == N {
+            0
+        } else if back * 10 >= N * 9 {
+            1
+        } else {
+            2
+        };
+        enclosure[0][e] += a;
+        if n_near == 0 && n_far > 0 {
+            enclosure[1][e] += a;
+        }
         let row = &mut per[bake.texels.instance[t] as usize];
         row[0] += a;
         let k = match (n_near > 0, n_far > 0) {
@@ -85,6 +104,15 @@ fn main() -> anyhow::Result<()> {
         100.0 * sum[3] / sum[0],
         100.0 * sum[4] / sum[0]
     );
+    for (label, e) in ["all invalid", "far-only"].iter().zip(&enclosure) {
+        let sum: f64 = e.iter().sum();
+        println!(
+            "{label} ({sum:.1} m²): sealed {:.1} %, mostly (≥ 90 % back faces) {:.1} %, open {:.1} %",
+            100.0 * e[0] / sum,
+            100.0 * e[1] / sum,
+            100.0 * e[2] / sum
+        );
+    }
     dists.sort_by(f32::total_cmp);
     let q = |f: f64| {
         dists
