@@ -287,7 +287,8 @@ pub struct BakeConfig {
     /// with its cosine rays by MIS ([`crate::nee`]); needs a stored
     /// form-factor matrix (not `solver = "progressive"`).
     pub gather_nee: bool,
-    /// The final gather's near field, in texels (1/`texels_per_meter`):
+    /// The final gather's near field, in texels of the hit instance (the
+    /// density used, as `report.json`'s `texels_per_meter`, × its texel scale):
     /// a ray that lands closer reads the local lights' direct light
     /// (emitters, point and spot lights) at its hit point, not the hit
     /// texel's mean ([`crate::gather::NearField`]); 0: off.

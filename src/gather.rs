@@ -343,8 +343,34 @@ pub struct NearField<'a> {
     pub valid: &'a [bool],
     /// The lights D_local was made of.
     pub lights: &'a Lights,
-    /// Hits closer than this (metres) read the direct light at the point.
-    pub radius: f32,
+    /// Per instance: hits on it closer than this (metres) read the direct
+    /// light at the point.
+    pub radius: Vec<f32>,
+    /// The largest `radius`: hits beyond it are not looked up.
+    pub reach: f32,
+}
+
+impl<'a> NearField<'a> {
+    /// The near field of `near` texels of each instance (`texel_size`,
+    /// metres per texel side, per instance) over `direct`, `valid` and
+    /// `lights`.
+    pub fn new(
+        near: f32,
+        texel_size: &[f32],
+        direct: &'a [Vec3],
+        valid: &'a [bool],
+        lights: &'a Lights,
+    ) -> Self {
+        let radius: Vec<f32> = texel_size.iter().map(|s| near * s).collect();
+        let reach = radius.iter().copied().fold(0.0, f32::max);
+        NearField {
+            direct,
+            valid,
+            lights,
+            radius,
+            reach,
+        }
+    }
 }
 
 /// A texel's draws for its near field ([`Gatherer::near_light`]): its
@@ -454,7 +480,11 @@ impl<'a> Gatherer<'a> {
         let Some(near) = &self.near else {
             return Vec3::ZERO;
         };
-        if hit.t >= near.radius || !near.valid[h as usize] {
+        if hit.t >= near.reach {
+            return Vec3::ZERO;
+        }
+        let instance = self.s.texels.instance[h as usize] as usize;
+        if hit.t >= near.radius[instance] || !near.valid[h as usize] {
             return Vec3::ZERO;
         }
         let t = draws.texel;
@@ -627,15 +657,9 @@ impl<'a> Gatherer<'a> {
             let mut reads = [(Vec3::ZERO, Vec3::ZERO); GROUP];
             for i in 0..m {
                 if let (Landing::Texel(h), Some(hit)) = (landings[i], &hits[i]) {
-                    reads[i] = self.read(h, hit, group[i].2);
-                }
-            }
-            if self.near.is_some() {
-                for i in 0..m {
-                    if let (Landing::Texel(h), Some(hit)) = (landings[i], &hits[i]) {
-                        let ray = (group[i].3, group[i].2);
-                        reads[i].0 += self.near_light(h, hit, ray, &mut near);
-                    }
+                    let (_, _, dir, origin) = group[i];
+                    reads[i] = self.read(h, hit, dir);
+                    reads[i].0 += self.near_light(h, hit, (origin, dir), &mut near);
                 }
             }
             for i in 0..m {

@@ -176,15 +176,17 @@ pub fn run(
 
     log.begin("final_gather", s.texels.len() as u64);
     let gatherer = gatherer(s, &first, &direct, config, sky);
-    // Close hits read the local lights at the point (see `NearField`).
-    let near = config.gather_near_field / config.texels_per_meter;
-    let gatherer = if near > 0.0 && direct.lights.has_local() {
-        gatherer.with_near(gather::NearField {
-            direct: &direct.parts.local,
-            valid: &pre,
-            lights: &direct.lights,
-            radius: near,
-        })
+    // Close hits read the local lights at the point (see `NearField`):
+    // within `gather_near_field` texels of the atlas's density (lowered to
+    // fit `max_texels`) and the hit instance's texel scale.
+    let gatherer = if config.gather_near_field > 0.0 && direct.lights.has_local() {
+        gatherer.with_near(gather::NearField::new(
+            config.gather_near_field,
+            &texel_sizes(s, atlas),
+            &direct.parts.local,
+            &pre,
+            &direct.lights,
+        ))
     } else {
         gatherer
     };
@@ -677,12 +679,7 @@ fn gathered_light(
     };
     if config.denoise {
         log.begin("denoise", 0);
-        let texel_size: Vec<f32> = s
-            .scene
-            .instances
-            .iter()
-            .map(|i| 1.0 / (atlas.texels_per_meter * i.texel_scale))
-            .collect();
+        let texel_size = texel_sizes(s, atlas);
         let region = |t: usize| s.burial.region(s.texels, t);
         denoise::atrous(
             s.texels,
@@ -711,4 +708,14 @@ fn gathered_light(
         mixed: Vec::new(),
         patch_light: None,
     }
+}
+
+/// Per instance, the side of one of its texels in metres: the atlas's
+/// density (lowered to fit `max_texels`) times the instance's texel scale.
+fn texel_sizes(s: &Surfaces, atlas: &Atlas) -> Vec<f32> {
+    s.scene
+        .instances
+        .iter()
+        .map(|i| 1.0 / (atlas.texels_per_meter * i.texel_scale))
+        .collect()
 }
