@@ -45,7 +45,6 @@ pub fn find(
     rays: &RayCaster,
     valid: &(dyn Fn(u32, Vec2) -> bool + Sync),
 ) -> Vec<SeamSample> {
-    let q = |p: Vec3| (p * 1e5).round().as_i64vec3().to_array();
     // Every triangle edge under its key (sorted quantised endpoints), in
     // key order and, within a key, triangle and corner order; an edge met
     // by exactly two triangles is a candidate. (A sort, not a hash map:
@@ -56,7 +55,7 @@ pub fn find(
         .flat_map_iter(|t| {
             let p = geometry.p_ws[t];
             [(0u8, 1u8), (1, 2), (2, 0)].map(|(i, j)| {
-                let (a, b) = (q(p[i as usize]), q(p[j as usize]));
+                let (a, b) = (quantise(p[i as usize]), quantise(p[j as usize]));
                 let key = if a <= b { (a, b) } else { (b, a) };
                 (key, t as u32, i, j)
             })
@@ -75,6 +74,12 @@ pub fn find(
         .collect()
 }
 
+/// A point quantised to 10 µm: edges whose quantised endpoints agree are
+/// one edge ([`find`]).
+fn quantise(p: Vec3) -> [i64; 3] {
+    (p * 1e5).round().as_i64vec3().to_array()
+}
+
 /// The samples along the edge that triangles `a` (corners ia, ja) and `b`
 /// share, if it is a seam of one surface ([`find`]).
 fn seam_of(
@@ -83,7 +88,6 @@ fn seam_of(
     valid: &(dyn Fn(u32, Vec2) -> bool + Sync),
     [(ta, ia, ja), (tb, ib, jb)]: [(u32, usize, usize); 2],
 ) -> Vec<SeamSample> {
-    let q = |p: Vec3| (p * 1e5).round().as_i64vec3().to_array();
     let cos_max = MAX_SEAM_ANGLE_DEG.to_radians().cos();
     let (ta_u, tb_u) = (ta as usize, tb as usize);
     if geometry.ng_ws[ta_u].dot(geometry.ng_ws[tb_u]) < cos_max {
@@ -91,7 +95,7 @@ fn seam_of(
     }
     // Orient B's corners like A's (same world endpoints).
     let pa = [geometry.p_ws[ta_u][ia], geometry.p_ws[ta_u][ja]];
-    let (ib, jb) = if q(geometry.p_ws[tb_u][ib]) == q(pa[0]) {
+    let (ib, jb) = if quantise(geometry.p_ws[tb_u][ib]) == quantise(pa[0]) {
         (ib, jb)
     } else {
         (jb, ib)

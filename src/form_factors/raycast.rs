@@ -178,19 +178,33 @@ impl Surfaces<'_> {
 
     /// The texel at barycentrics (u, v) of triangle `tri`, reached along `dir`.
     pub fn land(&self, tri: u32, u: f32, v: f32, dir: Vec3) -> Landing {
-        let g = self.geometry;
-        let t = tri as usize;
         if self.back_face(tri, dir) {
             return Landing::BackFace;
         }
-        let uv_lm = g.uv_lm_at(tri, u, v);
-        match self
-            .texels
-            .lookup(g.page[t], uv_lm, g.instance[t], g.chart[t])
-        {
-            Some(texel) if !self.burial.split(texel as usize) => Landing::Texel(texel),
-            Some(texel) => self.beside(texel, g.point(tri, u, v)),
+        let (page, uv_lm, instance, chart) = self.lookup_query(tri, u, v);
+        match self.texels.lookup(page, uv_lm, instance, chart) {
+            Some(texel) => self.landed(texel, tri, u, v),
             None => Landing::Unmapped,
+        }
+    }
+
+    /// What [`Texels::lookup`] needs for barycentrics (u, v) of triangle
+    /// `tri`: its page, the lightmap point, its instance and chart.
+    #[inline(always)]
+    fn lookup_query(&self, tri: u32, u: f32, v: f32) -> (u32, Vec2, u32, u32) {
+        let (g, t) = (self.geometry, tri as usize);
+        (g.page[t], g.uv_lm_at(tri, u, v), g.instance[t], g.chart[t])
+    }
+
+    /// The landing of a hit at (u, v) of `tri` that lookup found in
+    /// `texel`: the texel, or where it is split by its burial planes
+    /// ([`Burial::split`]), the texel on the hit's side.
+    #[inline(always)]
+    fn landed(&self, texel: u32, tri: u32, u: f32, v: f32) -> Landing {
+        if self.burial.split(texel as usize) {
+            self.beside(texel, self.geometry.point(tri, u, v))
+        } else {
+            Landing::Texel(texel)
         }
     }
 
@@ -209,7 +223,6 @@ impl Surfaces<'_> {
         out: &mut [Landing],
     ) {
         const BATCH: usize = 16;
-        let g = self.geometry;
         for (c, (hits, out)) in hits.chunks(BATCH).zip(out.chunks_mut(BATCH)).enumerate() {
             let mut queries = [(0u32, Vec2::ZERO, 0u32, 0u32); BATCH];
             let mut asked = [0usize; BATCH];
@@ -219,16 +232,10 @@ impl Surfaces<'_> {
                     *o = Landing::Escaped;
                     continue;
                 };
-                let t = h.tri as usize;
                 *o = if self.back_face(h.tri, dir(c * BATCH + i)) {
                     Landing::BackFace
                 } else {
-                    queries[n] = (
-                        g.page[t],
-                        g.uv_lm_at(h.tri, h.u, h.v),
-                        g.instance[t],
-                        g.chart[t],
-                    );
+                    queries[n] = self.lookup_query(h.tri, h.u, h.v);
                     asked[n] = i;
                     n += 1;
                     Landing::Unmapped
@@ -240,12 +247,8 @@ impl Surfaces<'_> {
                 let Some(texel) = texel else {
                     continue;
                 };
-                out[i] = if self.burial.split(texel as usize) {
-                    let h = hits[i].expect("asked only for hits");
-                    self.beside(texel, g.point(h.tri, h.u, h.v))
-                } else {
-                    Landing::Texel(texel)
-                };
+                let h = hits[i].expect("asked only for hits");
+                out[i] = self.landed(texel, h.tri, h.u, h.v);
             }
         }
     }
