@@ -384,25 +384,80 @@ struct Accum {
     emission: Vec3,
 }
 
+/// Rows of an instance's rectangle that one task covers: a big instance
+/// is split into bands of rows, so that both cores share it (Sponza's
+/// largest instance held half the stage). Every band meets the triangles in
+/// the same order, so each cell's sums add up exactly as in one pass.
+const BAND_ROWS: u32 = 32;
+
 /// Rasterises every triangle of `geometry` into the atlas: each instance's
-/// rectangle on its own (in parallel), then the covered cells numbered into
-/// texels in instance order.
+/// rectangle, band by band of [`BAND_ROWS`] rows (in parallel), then the
+/// covered cells numbered into texels in instance order.
 pub fn rasterize(scene: &Scene, atlas: &Atlas, geometry: &Geometry) -> Texels {
+    rasterize_in_bands(scene, atlas, geometry, BAND_ROWS)
+}
+
+/// [`rasterize`] with bands of `band_rows` rows.
+fn rasterize_in_bands(scene: &Scene, atlas: &Atlas, geometry: &Geometry, band_rows: u32) -> Texels {
     let ranges = instance_ranges(scene, geometry);
     // Mipmaps for the footprint means, dropped when the stage ends.
     let mips = crate::scene::Mips::new(scene.textures.len());
-    let per_instance: Vec<InstanceCells> = ranges
+    let bands: Vec<(usize, u32, u32)> = (0..ranges.len())
+        .flat_map(|inst| instance_bands(atlas, inst, band_rows))
+        .collect();
+    let per_band: Vec<BandCells> = bands
         .par_iter()
-        .enumerate()
-        .map(|(inst, &range)| {
-            let mut grid = InstanceGrid::new(atlas, inst);
-            for t in range.0..range.1 {
-                grid.cover(scene, &mips, geometry, t);
-            }
-            grid.cells()
+        .map(|&(inst, y0, y1)| {
+            let range = ranges[inst];
+            let mut grid = InstanceGrid::new(atlas, inst, y0, y1);
+            let covered = (range.0..range.1)
+                .map(|t| grid.cover(scene, &mips, geometry, t))
+                .collect();
+            (inst, grid.cells(), covered)
         })
         .collect();
-    assemble(scene, atlas, geometry, per_instance)
+    assemble(scene, atlas, geometry, merge_bands(ranges.len(), per_band))
+}
+
+/// The row bands `(instance, y0, y1)` of instance `inst`'s rectangle; one
+/// empty band where it has no rows, so that its triangles are still counted.
+fn instance_bands(atlas: &Atlas, inst: usize, rows: u32) -> Vec<(usize, u32, u32)> {
+    let (_, y0, _, y1) = instance_rect(atlas, inst);
+    if y1 <= y0 {
+        return vec![(inst, y0, y0)];
+    }
+    (y0..y1)
+        .step_by(rows.max(1) as usize)
+        .map(|b| (inst, b, b.saturating_add(rows.max(1)).min(y1)))
+        .collect()
+}
+
+/// One band's instance, cells and overlap count, and which of the
+/// instance's triangles covered something in it.
+type BandCells = (usize, (Vec<Cell>, u64), Vec<bool>);
+
+/// Each instance's cells from its bands (in row order), its unmapped
+/// triangles (those that covered nothing in any band) and chart overlaps.
+fn merge_bands(instances: usize, per_band: Vec<BandCells>) -> Vec<InstanceCells> {
+    let mut out: Vec<(InstanceCells, Vec<bool>)> = (0..instances)
+        .map(|_| ((Vec::new(), 0, 0), Vec::new()))
+        .collect();
+    for (inst, (cells, overlaps), covered) in per_band {
+        let ((all, _, o), any) = &mut out[inst];
+        all.extend(cells);
+        *o += overlaps;
+        if any.is_empty() {
+            *any = covered;
+        } else {
+            any.iter_mut().zip(covered).for_each(|(a, c)| *a |= c);
+        }
+    }
+    out.into_iter()
+        .map(|((cells, _, overlaps), any)| {
+            let unmapped = any.iter().filter(|&&c| !c).count() as u64;
+            (cells, unmapped, overlaps)
+        })
+        .collect()
 }
 
 /// Each instance's triangles `start..end` (they are contiguous in
@@ -419,14 +474,16 @@ fn instance_ranges(scene: &Scene, geometry: &Geometry) -> Vec<(usize, usize)> {
     ranges
 }
 
-/// One instance's covered cells (x, y, sums, pieces), its unmapped
-/// triangles and chart overlaps.
-type InstanceCells = (Vec<(u32, u32, Accum, Vec<Piece>)>, u64, u64);
+/// A covered cell: (x, y, sums, pieces).
+type Cell = (u32, u32, Accum, Vec<Piece>);
 
-/// The cells of one instance's atlas rectangle, as its triangles cover
-/// them.
+/// One instance's covered cells, its unmapped triangles and chart overlaps.
+type InstanceCells = (Vec<Cell>, u64, u64);
+
+/// The cells of one band of rows of an instance's atlas rectangle, as its
+/// triangles cover them.
 struct InstanceGrid {
-    /// The rectangle in atlas texels: [x0, x1) × [y0, y1).
+    /// The band in atlas texels: [x0, x1) × [y0, y1).
     x0: u32,
     y0: u32,
     x1: u32,
@@ -436,18 +493,24 @@ struct InstanceGrid {
     grid: Vec<Accum>,
     /// (cell index, piece), in triangle order.
     pieces: Vec<(u32, Piece)>,
-    unmapped: u64,
     overlaps: u64,
 }
 
+/// Instance `inst`'s rectangle in atlas texels: (x0, y0, x1, y1).
+fn instance_rect(atlas: &Atlas, inst: usize) -> (u32, u32, u32, u32) {
+    let (w, h) = (atlas.width, atlas.height);
+    let rect = atlas.instances[inst];
+    let x0 = (rect.min[0] * w as f32).floor().max(0.0) as u32;
+    let y0 = (rect.min[1] * h as f32).floor().max(0.0) as u32;
+    let x1 = ((rect.max[0] * w as f32).ceil() as u32).min(w);
+    let y1 = ((rect.max[1] * h as f32).ceil() as u32).min(h);
+    (x0, y0, x1, y1)
+}
+
 impl InstanceGrid {
-    fn new(atlas: &Atlas, inst: usize) -> Self {
-        let (w, h) = (atlas.width, atlas.height);
-        let rect = atlas.instances[inst];
-        let x0 = (rect.min[0] * w as f32).floor().max(0.0) as u32;
-        let y0 = (rect.min[1] * h as f32).floor().max(0.0) as u32;
-        let x1 = ((rect.max[0] * w as f32).ceil() as u32).min(w);
-        let y1 = ((rect.max[1] * h as f32).ceil() as u32).min(h);
+    /// Rows `y0..y1` of instance `inst`'s rectangle.
+    fn new(atlas: &Atlas, inst: usize, y0: u32, y1: u32) -> Self {
+        let (x0, _, x1, _) = instance_rect(atlas, inst);
         let (rw, rh) = (x1.saturating_sub(x0), y1.saturating_sub(y0));
         InstanceGrid {
             x0,
@@ -458,20 +521,25 @@ impl InstanceGrid {
             rh,
             grid: vec![Accum::default(); (rw * rh) as usize],
             pieces: Vec::new(),
-            unmapped: 0,
             overlaps: 0,
         }
     }
 
-    /// Adds triangle `t`'s exact coverage of every texel it touches: the
-    /// clipped area, centroid, normal, footprint-mean albedo and emission,
-    /// and one piece per texel. Cut-out (alpha-masked) parts cover nothing.
-    fn cover(&mut self, scene: &Scene, mips: &crate::scene::Mips, geometry: &Geometry, t: usize) {
+    /// Adds triangle `t`'s exact coverage of every texel of the band it
+    /// touches: the clipped area, centroid, normal, footprint-mean albedo
+    /// and emission, and one piece per texel. Cut-out (alpha-masked) parts
+    /// cover nothing. False where it covered nothing here.
+    fn cover(
+        &mut self,
+        scene: &Scene,
+        mips: &crate::scene::Mips,
+        geometry: &Geometry,
+        t: usize,
+    ) -> bool {
         let lm = geometry.uv_lm[t];
         let lm_area = 0.5 * (lm[1] - lm[0]).perp_dot(lm[2] - lm[0]).abs();
         if lm_area <= 1e-10 || geometry.chart[t] == u32::MAX {
-            self.unmapped += 1;
-            return;
+            return false;
         }
         let world_per_texel = geometry.area[t] / lm_area;
         let lo = lm[0].min(lm[1]).min(lm[2]).floor();
@@ -529,14 +597,12 @@ impl InstanceGrid {
                 cell.emission += emission * a;
             }
         }
-        if !covered {
-            self.unmapped += 1;
-        }
+        covered
     }
 
     /// The covered cells in row order, each with its pieces (in triangle
-    /// order within a cell).
-    fn cells(mut self) -> InstanceCells {
+    /// order within a cell), and the chart overlaps.
+    fn cells(mut self) -> (Vec<Cell>, u64) {
         self.pieces.sort_by_key(|p| p.0);
         let mut next = self.pieces.iter().peekable();
         let mut out = Vec::new();
@@ -553,7 +619,7 @@ impl InstanceGrid {
                 }
             }
         }
-        (out, self.unmapped, self.overlaps)
+        (out, self.overlaps)
     }
 }
 
@@ -638,11 +704,11 @@ mod tests {
     /// A texel's packed index entry names it and its owner (instance, chart):
     /// every texel of two instances of one mesh is found at its own lightmap
     /// point for its own owner and for no other, and owners are distinct.
-    #[test]
-    fn lookup_finds_texels_by_owner() {
+    /// Two unit quads at an angle (two charts), one mesh, two instances,
+    /// and one degenerate triangle per instance.
+    fn bent_scene() -> Scene {
         use crate::scene::{Instance, Material, Mesh};
         use glam::{Mat4, Vec3};
-        // Two unit quads at an angle (two charts), one mesh, two instances.
         let mut m = Mesh {
             name: "bent".into(),
             ..Default::default()
@@ -660,7 +726,9 @@ mod tests {
             m.triangles.push([base, base + 2, base + 3]);
             m.triangle_material.extend([0, 0]);
         }
-        let scene = Scene {
+        m.triangles.push([0, 1, 1]);
+        m.triangle_material.push(0);
+        Scene {
             meshes: vec![m],
             instances: (0..2)
                 .map(|i| Instance {
@@ -675,7 +743,12 @@ mod tests {
                 .collect(),
             materials: vec![Material::fallback()],
             ..Default::default()
-        };
+        }
+    }
+
+    #[test]
+    fn lookup_finds_texels_by_owner() {
+        let scene = bent_scene();
         let config = crate::BakeConfig {
             texels_per_meter: 8.0,
             ..Default::default()
@@ -697,6 +770,42 @@ mod tests {
         let distinct: std::collections::BTreeSet<u32> = owners.iter().map(|o| o.0).collect();
         assert_eq!(distinct.len(), owners.len(), "owners collide: {owners:?}");
         assert!(owners.len() >= 4, "two charts per instance: {owners:?}");
+    }
+
+    /// Bands of any height give the texels of one pass over the whole
+    /// rectangle, bit for bit, and count each unmapped triangle once.
+    #[test]
+    fn bands_change_no_texel() {
+        let scene = bent_scene();
+        let config = crate::BakeConfig {
+            texels_per_meter: 40.0,
+            ..Default::default()
+        };
+        let atlas = crate::atlas::unwrap(&scene, &config).unwrap();
+        let geometry = Geometry::new(&scene, &atlas);
+        let key = |t: &Texels| {
+            format!(
+                "{:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {}",
+                t.xy,
+                t.area,
+                t.p_ws,
+                t.n_ws,
+                t.albedo,
+                t.triangle,
+                t.pieces,
+                t.piece_start,
+                t.index,
+                t.chart_overlaps
+            )
+        };
+        let whole = rasterize_in_bands(&scene, &atlas, &geometry, u32::MAX);
+        assert!(whole.len() > 1000, "{} texels", whole.len());
+        assert_eq!(whole.unmapped_triangles, 2);
+        for rows in [1, 3, 32] {
+            let banded = rasterize_in_bands(&scene, &atlas, &geometry, rows);
+            assert_eq!(banded.unmapped_triangles, 2, "bands of {rows}");
+            assert!(key(&banded) == key(&whole), "bands of {rows} rows differ");
+        }
     }
 
     #[test]
