@@ -405,7 +405,7 @@ fn rasterize_in_bands(scene: &Scene, atlas: &Atlas, geometry: &Geometry, band_ro
     let bands: Vec<(usize, u32, u32)> = (0..ranges.len())
         .flat_map(|inst| instance_bands(atlas, inst, band_rows))
         .collect();
-    let per_band: Vec<BandCells> = bands
+    let per_band: Vec<Band> = bands
         .par_iter()
         .map(|&(inst, y0, y1)| {
             let range = ranges[inst];
@@ -413,10 +413,13 @@ fn rasterize_in_bands(scene: &Scene, atlas: &Atlas, geometry: &Geometry, band_ro
             let covered = (range.0..range.1)
                 .map(|t| grid.cover(scene, &mips, geometry, t))
                 .collect();
-            (inst, grid.cells(), covered)
+            grid.into_band(inst, covered)
         })
         .collect();
-    assemble(scene, atlas, geometry, merge_bands(ranges.len(), per_band))
+    let unmapped = unmapped_triangles(ranges.len(), &per_band);
+    let mut tx = assemble(scene, atlas, geometry, per_band);
+    tx.unmapped_triangles += unmapped;
+    tx
 }
 
 /// The row bands `(instance, y0, y1)` of instance `inst`'s rectangle; one
@@ -432,32 +435,29 @@ fn instance_bands(atlas: &Atlas, inst: usize, rows: u32) -> Vec<(usize, u32, u32
         .collect()
 }
 
-/// One band's instance, cells and overlap count, and which of the
+/// One band's covered cells in row order, their pieces (each cell's in
+/// triangle order, one flat list), its chart overlaps, and which of the
 /// instance's triangles covered something in it.
-type BandCells = (usize, (Vec<Cell>, u64), Vec<bool>);
+struct Band {
+    inst: usize,
+    cells: Vec<Cell>,
+    pieces: Vec<Piece>,
+    overlaps: u64,
+    covered: Vec<bool>,
+}
 
-/// Each instance's cells from its bands (in row order), its unmapped
-/// triangles (those that covered nothing in any band) and chart overlaps.
-fn merge_bands(instances: usize, per_band: Vec<BandCells>) -> Vec<InstanceCells> {
-    let mut out: Vec<(InstanceCells, Vec<bool>)> = (0..instances)
-        .map(|_| ((Vec::new(), 0, 0), Vec::new()))
-        .collect();
-    for (inst, (cells, overlaps), covered) in per_band {
-        let ((all, _, o), any) = &mut out[inst];
-        all.extend(cells);
-        *o += overlaps;
-        if any.is_empty() {
-            *any = covered;
+/// Triangles that covered nothing in any band of their instance.
+fn unmapped_triangles(instances: usize, bands: &[Band]) -> u64 {
+    let mut any: Vec<Vec<bool>> = vec![Vec::new(); instances];
+    for b in bands {
+        let a = &mut any[b.inst];
+        if a.is_empty() {
+            a.clone_from(&b.covered);
         } else {
-            any.iter_mut().zip(covered).for_each(|(a, c)| *a |= c);
+            a.iter_mut().zip(&b.covered).for_each(|(a, &c)| *a |= c);
         }
     }
-    out.into_iter()
-        .map(|((cells, _, overlaps), any)| {
-            let unmapped = any.iter().filter(|&&c| !c).count() as u64;
-            (cells, unmapped, overlaps)
-        })
-        .collect()
+    any.iter().flatten().filter(|&&c| !c).count() as u64
 }
 
 /// Each instance's triangles `start..end` (they are contiguous in
@@ -474,11 +474,8 @@ fn instance_ranges(scene: &Scene, geometry: &Geometry) -> Vec<(usize, usize)> {
     ranges
 }
 
-/// A covered cell: (x, y, sums, pieces).
-type Cell = (u32, u32, Accum, Vec<Piece>);
-
-/// One instance's covered cells, its unmapped triangles and chart overlaps.
-type InstanceCells = (Vec<Cell>, u64, u64);
+/// A covered cell: (x, y, sums, its pieces' range in its band's list).
+type Cell = (u32, u32, Accum, std::ops::Range<usize>);
 
 /// The cells of one band of rows of an instance's atlas rectangle, as its
 /// triangles cover them.
@@ -600,26 +597,33 @@ impl InstanceGrid {
         covered
     }
 
-    /// The covered cells in row order, each with its pieces (in triangle
-    /// order within a cell), and the chart overlaps.
-    fn cells(mut self) -> (Vec<Cell>, u64) {
+    /// The band: its covered cells in row order, each with its pieces (in
+    /// triangle order within a cell).
+    fn into_band(mut self, inst: usize, covered: Vec<bool>) -> Band {
+        // Stable: a cell's pieces stay in triangle order.
         self.pieces.sort_by_key(|p| p.0);
-        let mut next = self.pieces.iter().peekable();
-        let mut out = Vec::new();
+        let mut cells = Vec::new();
+        let mut at = 0;
         for y in 0..self.rh {
             for x in 0..self.rw {
                 let index = y * self.rw + x;
-                let mut mine = Vec::new();
-                while let Some(&(_, p)) = next.next_if(|p| p.0 == index) {
-                    mine.push(p);
+                let start = at;
+                while at < self.pieces.len() && self.pieces[at].0 == index {
+                    at += 1;
                 }
                 let c = self.grid[index as usize];
                 if c.area > 0.0 {
-                    out.push((self.x0 + x, self.y0 + y, c, mine));
+                    cells.push((self.x0 + x, self.y0 + y, c, start..at));
                 }
             }
         }
-        (out, self.overlaps)
+        Band {
+            inst,
+            cells,
+            pieces: self.pieces.into_iter().map(|p| p.1).collect(),
+            overlaps: self.overlaps,
+            covered,
+        }
     }
 }
 
@@ -646,13 +650,9 @@ fn owner_bases(scene: &Scene, atlas: &Atlas) -> Vec<u32> {
     owner_base
 }
 
-/// The texels, numbered in instance order, and the page index.
-fn assemble(
-    scene: &Scene,
-    atlas: &Atlas,
-    geometry: &Geometry,
-    per_instance: Vec<InstanceCells>,
-) -> Texels {
+/// The texels, numbered in instance order (the bands in order), and the
+/// page index.
+fn assemble(scene: &Scene, atlas: &Atlas, geometry: &Geometry, bands: Vec<Band>) -> Texels {
     let (w, h) = (atlas.width, atlas.height);
     let mut tx = Texels {
         index: vec![vec![EMPTY_ENTRY; (w * h) as usize]; atlas.page_count.max(1) as usize],
@@ -661,11 +661,11 @@ fn assemble(
         height: h,
         ..Default::default()
     };
-    for (inst, (cells, unmapped, overlaps)) in per_instance.into_iter().enumerate() {
-        tx.unmapped_triangles += unmapped;
-        tx.chart_overlaps += overlaps;
+    for band in bands {
+        let inst = band.inst;
+        tx.chart_overlaps += band.overlaps;
         let page = atlas.instances[inst].page;
-        for (x, y, c, pieces) in cells {
+        for (x, y, c, pieces) in band.cells {
             let id = tx.len() as u32;
             let slot = &mut tx.index[page as usize][(y * w + x) as usize];
             if *slot != EMPTY_ENTRY {
@@ -688,7 +688,7 @@ fn assemble(
             if tx.piece_start.is_empty() {
                 tx.piece_start.push(0);
             }
-            tx.pieces.extend(pieces);
+            tx.pieces.extend_from_slice(&band.pieces[pieces]);
             tx.piece_start.push(tx.pieces.len() as u32);
             tx.albedo.push(c.albedo / c.area);
             tx.emission.push(c.emission / c.area);
