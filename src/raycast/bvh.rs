@@ -10,7 +10,8 @@
 //! surface-area cost (MacDonald & Booth 1990; the collapse of Ylitie, Karras
 //! & Laine 2017). A node holds its children's boxes in SoA form so one ray
 //! meets all W at once; a leaf is one or two [`Tri4`]: four triangles in
-//! SoA form, intersected at once (the layout of Embree's `Triangle4`,
+//! SoA form, intersected at once (the layout of Embree's `Triangle4`
+//! less its stored normal, which is recomputed per test,
 //! Möller–Trumbore as arranged by madmann91's bvh, the division left to the
 //! lanes that hit). Closest-hit traversal is nearest child first; stack
 //! entries keep their entry distance so that entries beyond the closest hit
