@@ -209,10 +209,12 @@ fn sdf_unsigned(o: vec3<f32>, dir: vec3<f32>, a: vec2<f32>, s: f32, tb: f32) -> 
     if m.y * s < 0.0 {
         return sdf_crossing(o, dir, a, m);
     }
-    if abs(m.y) < SDF_UNSIGNED * voxel {
-        return m.x;
+    if abs(m.y) >= SDF_UNSIGNED_FLAT * voxel {
+        return -1.0;
     }
-    if abs(m.y) < SDF_UNSIGNED_FLAT * voxel && length(sdf_gradient(o + dir * m.x)) < SDF_FLAT {
+    // Beside a sign flip the field is steep: no surface.
+    let slope = length(sdf_gradient(o + dir * m.x));
+    if (abs(m.y) < SDF_UNSIGNED * voxel && slope <= SDF_SURFACE_SLOPE) || slope < SDF_FLAT {
         return m.x;
     }
     return -1.0;

@@ -225,7 +225,10 @@ impl Sdf {
     ///   below zero is a thin negative region the steps went over: a sign
     ///   change as above. A ray that passes within a quarter voxel of a
     ///   surface without meeting it stops there: at the field's
-    ///   resolution, that is a thin sheet.
+    ///   resolution, that is a thin sheet. Not where the field is steeper
+    ///   than [`SURFACE_SLOPE`] there: that dip is the edge of a sign flip
+    ///   (the solid layer behind a one-sided face meeting open air), not
+    ///   a surface.
     ///
     /// Deterministic (no randomness; the same samples for the same ray).
     pub fn march(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<f32> {
@@ -270,8 +273,14 @@ impl Sdf {
         if dm * s < 0.0 {
             return self.crossing(origin, dir, a, (tm, dm));
         }
-        let flat = || self.gradient(origin + dir * tm).length() < FLAT;
-        (dm.abs() < UNSIGNED * v || (dm.abs() < UNSIGNED_FLAT * v && flat())).then_some(tm)
+        if dm.abs() >= UNSIGNED_FLAT * v {
+            return None;
+        }
+        let slope = self.gradient(origin + dir * tm).length();
+        // Beside a sign flip (the edge of the solid layer behind a
+        // one-sided face, where open air meets it) the field is steep:
+        // no surface.
+        ((dm.abs() < UNSIGNED * v && slope <= SURFACE_SLOPE) || slope < FLAT).then_some(tm)
     }
 
     /// Where `origin + t·dir` (`t` ≥ 0) lies in the grid's box, to `tmax`.
@@ -685,6 +694,31 @@ mod tests {
             sdf.march(o, Vec3::new(1.0, 0.1, 0.0).normalize(), 30.0),
             None
         );
+    }
+
+    /// Open air (positive) round the solid layer behind a one-sided
+    /// sphere's faces: a ray that runs past the layer's edge, where the
+    /// field flips sign steeply and |field| dips under a quarter voxel
+    /// without changing sign, meets no surface there.
+    #[test]
+    fn march_passes_the_edge_of_a_solid_layer() {
+        let c = Vec3::splat(8.0);
+        let sdf = field(|p| {
+            // In front of the faces (r < 3) and in the layer behind them
+            // (3 ≤ r ≤ 5): 3 − r; open air beyond: r − 3.
+            let r = (p - c).length();
+            if r <= 5.0 {
+                3.0 - r
+            } else {
+                r - 3.0
+            }
+        });
+        let o = Vec3::new(0.5, 8.0, 12.9);
+        let dip = (0..=150)
+            .map(|k| sdf.sample(o + Vec3::X * (k as f32 * 0.1)))
+            .fold(f32::INFINITY, f32::min);
+        assert!(dip > 0.0 && dip < UNSIGNED, "the ray dips to {dip}");
+        assert_eq!(sdf.march(o, Vec3::X, 15.0), None);
     }
 
     /// Each region of open air takes its majority's sign; voxels near a
