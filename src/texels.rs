@@ -746,15 +746,21 @@ mod tests {
         }
     }
 
-    #[test]
-    fn lookup_finds_texels_by_owner() {
+    /// [`bent_scene`] unwrapped at `texels_per_meter`, with its geometry.
+    fn bent_atlas(texels_per_meter: f32) -> (Scene, Atlas, Geometry) {
         let scene = bent_scene();
         let config = crate::BakeConfig {
-            texels_per_meter: 8.0,
+            texels_per_meter,
             ..Default::default()
         };
         let atlas = crate::atlas::unwrap(&scene, &config).unwrap();
         let geometry = Geometry::new(&scene, &atlas);
+        (scene, atlas, geometry)
+    }
+
+    #[test]
+    fn lookup_finds_texels_by_owner() {
+        let (scene, atlas, geometry) = bent_atlas(8.0);
         let tx = rasterize(&scene, &atlas, &geometry);
         assert!(tx.len() > 100, "{} texels", tx.len());
         let mut owners = std::collections::BTreeSet::new();
@@ -776,13 +782,7 @@ mod tests {
     /// rectangle, bit for bit, and count each unmapped triangle once.
     #[test]
     fn bands_change_no_texel() {
-        let scene = bent_scene();
-        let config = crate::BakeConfig {
-            texels_per_meter: 40.0,
-            ..Default::default()
-        };
-        let atlas = crate::atlas::unwrap(&scene, &config).unwrap();
-        let geometry = Geometry::new(&scene, &atlas);
+        let (scene, atlas, geometry) = bent_atlas(40.0);
         let key = |t: &Texels| {
             format!(
                 "{:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {}",
