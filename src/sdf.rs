@@ -544,30 +544,31 @@ pub const OPEN_AIR: f32 = 2.0;
 fn settle_open_air(grid: &Grid, unsigned: &[f32], inside: &mut [bool]) {
     let far = |i: usize| unsigned[i] > OPEN_AIR * grid.voxel;
     let mut seen = vec![false; unsigned.len()];
-    let mut members: Vec<usize> = Vec::new();
+    // Voxel indices fit in u32 (at most MAX_VOXELS).
+    let mut members: Vec<u32> = Vec::new();
     for seed in 0..unsigned.len() {
         if !far(seed) || seen[seed] {
             continue;
         }
         // Breadth first from `seed`; `members` is the queue and the region.
         members.clear();
-        members.push(seed);
+        members.push(seed as u32);
         seen[seed] = true;
         let mut head = 0;
         while head < members.len() {
-            let i = members[head];
+            let i = members[head] as usize;
             head += 1;
             for j in face_neighbours(grid, i).into_iter().flatten() {
                 if far(j) && !seen[j] {
                     seen[j] = true;
-                    members.push(j);
+                    members.push(j as u32);
                 }
             }
         }
-        let votes = members.iter().filter(|&&i| inside[i]).count();
+        let votes = members.iter().filter(|&&i| inside[i as usize]).count();
         let sign = 2 * votes > members.len();
         for &i in &members {
-            inside[i] = sign;
+            inside[i as usize] = sign;
         }
     }
 }
