@@ -227,8 +227,7 @@ impl Sdf {
     ///   surface without meeting it stops there: at the field's
     ///   resolution, that is a thin sheet. Not where the field is steeper
     ///   than [`SURFACE_SLOPE`] there: that dip is the edge of a sign flip
-    ///   (the solid layer behind a one-sided face meeting open air), not
-    ///   a surface.
+    ///   in open air, not a surface.
     ///
     /// Deterministic (no randomness; the same samples for the same ray).
     pub fn march(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<f32> {
@@ -277,9 +276,9 @@ impl Sdf {
             return None;
         }
         let slope = self.gradient(origin + dir * tm).length();
-        // Beside a sign flip (the edge of the solid layer behind a
-        // one-sided face, where open air meets it) the field is steep:
-        // no surface.
+        // Beside a sign flip (where the votes of open air change, or the
+        // solid behind a one-sided face meets open air) the field is
+        // steep: no surface.
         ((dm.abs() < UNSIGNED * v && slope <= SURFACE_SLOPE) || slope < FLAT).then_some(tm)
     }
 
@@ -414,9 +413,7 @@ pub fn bake_over(
     let grid = Grid::over(bounds, settings.voxel);
     let band = settings.band.map(|b| b * settings.voxel);
     let nearest = distances(&grid, rays, band);
-    let (mut inside, cast) = signs(scene, geometry, rays, &grid, &nearest);
-    let unsigned: Vec<f32> = nearest.iter().map(|n| n.0).collect();
-    settle_open_air(&grid, &unsigned, &mut inside);
+    let (inside, cast) = signs(scene, geometry, rays, &grid, &nearest);
     let distance = nearest
         .iter()
         .zip(&inside)
@@ -516,75 +513,6 @@ fn signs(
         .collect();
     let cast = out.iter().map(|o| o.1).sum();
     (out.into_iter().map(|o| o.0).collect(), cast)
-}
-
-/// Voxels farther than this many voxels from any surface are open air
-/// ([`settle_open_air`]; the same clearance as the flips counted by
-/// [`Sdf::open_air_flips`]).
-pub const OPEN_AIR: f32 = 2.0;
-
-/// Step 3: every region of open air takes one sign.
-///
-/// A region is a set of voxels more than [`OPEN_AIR`] voxels from any
-/// surface, joined through their faces: one reaches another without
-/// coming near a surface, so no surface lies between them and their signs
-/// must agree. Each region takes the sign most of its voxels voted for
-/// (outside on a tie). Voxels nearer a surface keep their own sign, so a
-/// one-sided face still has a zero crossing: behind it is solid for at
-/// least two voxels, then whatever the region there is.
-///
-/// A level whose one-sided outer walls face in and whose roof faces out
-/// leaves the air outside it "behind" the walls and "in front of" the
-/// roof; voxel by voxel the votes there split (Sponza: 74,863 flips among
-/// 8.8 M pairs of open-air voxels), region by region they cannot. (Taking
-/// the region's sign into the voxels near surfaces too, wherever no
-/// surface can lie between neighbours, made the outer walls sheets with
-/// no zero crossing from either side: Sponza's rays agreed for 94.9 %
-/// instead of 97.9 %.) Serial and in index order: deterministic.
-fn settle_open_air(grid: &Grid, unsigned: &[f32], inside: &mut [bool]) {
-    let far = |i: usize| unsigned[i] > OPEN_AIR * grid.voxel;
-    let mut seen = vec![false; unsigned.len()];
-    // Voxel indices fit in u32 (at most MAX_VOXELS).
-    let mut members: Vec<u32> = Vec::new();
-    for seed in 0..unsigned.len() {
-        if !far(seed) || seen[seed] {
-            continue;
-        }
-        // Breadth first from `seed`; `members` is the queue and the region.
-        members.clear();
-        members.push(seed as u32);
-        seen[seed] = true;
-        let mut head = 0;
-        while head < members.len() {
-            let i = members[head] as usize;
-            head += 1;
-            for j in face_neighbours(grid, i).into_iter().flatten() {
-                if far(j) && !seen[j] {
-                    seen[j] = true;
-                    members.push(j as u32);
-                }
-            }
-        }
-        let votes = members.iter().filter(|&&i| inside[i as usize]).count();
-        let sign = 2 * votes > members.len();
-        for &i in &members {
-            inside[i as usize] = sign;
-        }
-    }
-}
-
-/// Voxel `i`'s six face neighbours (None past the grid's border).
-fn face_neighbours(grid: &Grid, i: usize) -> [Option<usize>; 6] {
-    let [nx, ny, nz] = grid.dims.map(|d| d as usize);
-    let (x, y, z) = (i % nx, (i / nx) % ny, i / (nx * ny));
-    [
-        (x > 0).then(|| i - 1),
-        (x + 1 < nx).then(|| i + 1),
-        (y > 0).then(|| i - nx),
-        (y + 1 < ny).then(|| i + nx),
-        (z > 0).then(|| i - nx * ny),
-        (z + 1 < nz).then(|| i + nx * ny),
-    ]
 }
 
 /// Whether the ray from `p` along `d` first meets the back of a one-sided
@@ -720,22 +648,6 @@ mod tests {
             .fold(f32::INFINITY, f32::min);
         assert!(dip > 0.0 && dip < UNSIGNED, "the ray dips to {dip}");
         assert_eq!(sdf.march(o, Vec3::X, 15.0), None);
-    }
-
-    /// Each region of open air takes its majority's sign; voxels near a
-    /// surface keep theirs.
-    #[test]
-    fn open_air_regions_take_one_sign() {
-        let grid = Grid {
-            origin: Vec3::ZERO,
-            voxel: 1.0,
-            dims: [11, 1, 1],
-        };
-        let unsigned = [5.0, 5.0, 5.0, 5.0, 0.1, 1.0, 0.1, 5.0, 5.0, 5.0, 5.0];
-        let (t, f) = (true, false);
-        let mut inside = [t, t, f, t, f, t, f, f, f, t, f];
-        settle_open_air(&grid, &unsigned, &mut inside);
-        assert_eq!(inside, [t, t, t, t, f, t, f, f, f, f, f]);
     }
 
     #[test]
