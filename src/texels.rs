@@ -410,13 +410,13 @@ fn rasterize_in_bands(scene: &Scene, atlas: &Atlas, geometry: &Geometry, band_ro
         .map(|&(inst, y0, y1)| {
             let range = ranges[inst];
             let mut grid = InstanceGrid::new(atlas, inst, y0, y1);
-            let covered = (range.0..range.1)
-                .map(|t| grid.cover(scene, &mips, geometry, t))
-                .collect();
-            grid.into_band(inst, covered)
+            for t in range.0..range.1 {
+                grid.cover(scene, &mips, geometry, t);
+            }
+            grid.into_band(inst)
         })
         .collect();
-    let unmapped = unmapped_triangles(ranges.len(), &per_band);
+    let unmapped = unmapped_triangles(geometry.len(), &per_band);
     let mut tx = assemble(scene, atlas, geometry, per_band);
     tx.unmapped_triangles += unmapped;
     tx
@@ -436,28 +436,22 @@ fn instance_bands(atlas: &Atlas, inst: usize, rows: u32) -> Vec<(usize, u32, u32
 }
 
 /// One band's covered cells in row order, their pieces (each cell's in
-/// triangle order, one flat list), its chart overlaps, and which of the
-/// instance's triangles covered something in it.
+/// triangle order, one flat list) and its chart overlaps.
 struct Band {
     inst: usize,
     cells: Vec<Cell>,
     pieces: Vec<Piece>,
     overlaps: u64,
-    covered: Vec<bool>,
 }
 
-/// Triangles that covered nothing in any band of their instance.
-fn unmapped_triangles(instances: usize, bands: &[Band]) -> u64 {
-    let mut any: Vec<Vec<bool>> = vec![Vec::new(); instances];
-    for b in bands {
-        let a = &mut any[b.inst];
-        if a.is_empty() {
-            a.clone_from(&b.covered);
-        } else {
-            a.iter_mut().zip(&b.covered).for_each(|(a, &c)| *a |= c);
-        }
+/// Triangles (of `triangles`) that left no piece in any band: unmapped,
+/// degenerate in the lightmap, or wholly cut out.
+fn unmapped_triangles(triangles: usize, bands: &[Band]) -> u64 {
+    let mut touched = vec![false; triangles];
+    for p in bands.iter().flat_map(|b| &b.pieces) {
+        touched[p.tri as usize] = true;
     }
-    any.iter().flatten().filter(|&&c| !c).count() as u64
+    touched.iter().filter(|&&c| !c).count() as u64
 }
 
 /// Each instance's triangles `start..end` (they are contiguous in
@@ -525,18 +519,12 @@ impl InstanceGrid {
     /// Adds triangle `t`'s exact coverage of every texel of the band it
     /// touches: the clipped area, centroid, normal, footprint-mean albedo
     /// and emission, and one piece per texel. Cut-out (alpha-masked) parts
-    /// cover nothing. False where it covered nothing here.
-    fn cover(
-        &mut self,
-        scene: &Scene,
-        mips: &crate::scene::Mips,
-        geometry: &Geometry,
-        t: usize,
-    ) -> bool {
+    /// cover nothing.
+    fn cover(&mut self, scene: &Scene, mips: &crate::scene::Mips, geometry: &Geometry, t: usize) {
         let lm = geometry.uv_lm[t];
         let lm_area = 0.5 * (lm[1] - lm[0]).perp_dot(lm[2] - lm[0]).abs();
         if lm_area <= 1e-10 || geometry.chart[t] == u32::MAX {
-            return false;
+            return;
         }
         let world_per_texel = geometry.area[t] / lm_area;
         let lo = lm[0].min(lm[1]).min(lm[2]).floor();
@@ -545,7 +533,6 @@ impl InstanceGrid {
         let ty0 = (lo.y as i64).max(self.y0 as i64);
         let tx1 = (hi.x as i64).min(self.x1 as i64);
         let ty1 = (hi.y as i64).min(self.y1 as i64);
-        let mut covered = false;
         for y in ty0..ty1 {
             for x in tx0..tx1 {
                 let Some((cov, centroid)) = clip_to_texel(&lm, x as f32, y as f32) else {
@@ -558,7 +545,6 @@ impl InstanceGrid {
                 if scene.is_cut_out(material, uv0) {
                     continue;
                 }
-                covered = true;
                 let a = cov * world_per_texel;
                 let index = (y as u32 - self.y0) * self.rw + (x as u32 - self.x0);
                 self.pieces.push((
@@ -594,12 +580,11 @@ impl InstanceGrid {
                 cell.emission += emission * a;
             }
         }
-        covered
     }
 
     /// The band: its covered cells in row order, each with its pieces (in
     /// triangle order within a cell).
-    fn into_band(mut self, inst: usize, covered: Vec<bool>) -> Band {
+    fn into_band(mut self, inst: usize) -> Band {
         // Stable: a cell's pieces stay in triangle order.
         self.pieces.sort_by_key(|p| p.0);
         let mut cells = Vec::new();
@@ -622,7 +607,6 @@ impl InstanceGrid {
             cells,
             pieces: self.pieces.into_iter().map(|p| p.1).collect(),
             overlaps: self.overlaps,
-            covered,
         }
     }
 }
