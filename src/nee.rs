@@ -75,15 +75,13 @@ impl<'a> PatchLights<'a> {
         let mut cdf = vec![0.0f32; f.nnz()];
         let mut lit = vec![false; f.nrows()];
         let offsets = f.row_offsets();
-        let cols = f.col_indices();
-        let vals = f.values();
         for i in 0..f.nrows() {
             let range = offsets[i]..offsets[i + 1];
             let mut total = 0.0f64;
-            for k in range.clone() {
-                let j = cols[k] as usize;
+            for ((j, v), k) in f.row(i).iter().zip(range.clone()) {
+                let j = j as usize;
                 let far = centre[i].distance(centre[j]) >= radius[i] + 2.0 * radius[j];
-                if j != i && far && usable[j] && lum[j] > 0.0 && vals[k] > 0.0 {
+                if j != i && far && usable[j] && lum[j] > 0.0 && v > 0.0 {
                     total += (point_factor(s, i, j) * lum[j]) as f64;
                 }
                 cdf[k] = total as f32;
@@ -117,8 +115,8 @@ impl<'a> PatchLights<'a> {
     /// P(j | i): entry `j` of row `i`'s distribution (0 if absent).
     #[inline]
     fn probability(&self, i: usize, j: usize) -> f32 {
-        let (start, end) = (self.f.row_offsets()[i], self.f.row_offsets()[i + 1]);
-        let Ok(k) = self.f.col_indices()[start..end].binary_search(&(j as u32)) else {
+        let start = self.f.row_offsets()[i];
+        let Some(k) = self.f.row(i).find(j as u32) else {
             return 0.0;
         };
         let lo = if k == 0 { 0.0 } else { self.cdf[start + k - 1] };
@@ -148,7 +146,7 @@ impl<'a> PatchLights<'a> {
         if p <= 0.0 {
             return None;
         }
-        let j = self.f.col_indices()[start + k] as usize;
+        let j = self.f.row(i).col(k) as usize;
         let mut x = ((u.x - lo) / p).clamp(0.0, 1.0) * s.patches.area[j];
         let texels = s.patches.texels_of(j);
         let mut pick = texels[texels.len() - 1];

@@ -278,7 +278,7 @@ fn cornell_box_sane() {
         rays[k.0 as usize] += rays_per_patch;
     }
     let mut af = vec![vec![0.0f64; n]; n];
-    for (i, (cols, vals)) in bake
+    for (i, row) in bake
         .patch_light()
         .and_then(|p| p.form_factors.as_ref())
         .unwrap()
@@ -286,7 +286,7 @@ fn cornell_box_sane() {
         .rows()
         .enumerate()
     {
-        for (&j, &v) in cols.iter().zip(vals) {
+        for (j, v) in row.iter() {
             let j = j as usize;
             af[p.key[i].0 as usize][p.key[j].0 as usize] += p.exposed_area[i] as f64 * v as f64;
         }

@@ -3,7 +3,7 @@
 //!
 //! Fᵢⱼ = 1/Aᵢ ∫_Aᵢ ∫_Aⱼ cos θᵢ cos θⱼ / (π r²) V(x, y) dAⱼ dAᵢ
 //!
-//! Stored as a sparse CSR matrix (`nalgebra-sparse`); row i sums to the
+//! Stored as a sparse CSR matrix ([`Csr`], columns in runs); row i sums to the
 //! fraction of i's hemisphere covered by other (front-facing) patches, 1 in a
 //! closed room. [`raycast`] and [`hemicube`] compute rows, [`rows`] serves
 //! them one at a time to progressive refinement; `analytic` holds Howell's
@@ -17,7 +17,7 @@ pub mod hemicube;
 pub mod raycast;
 pub mod rows;
 
-pub use csr::Csr;
+pub use csr::{Csr, Row, Run};
 
 /// Counters of a form-factor computation.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -100,7 +100,7 @@ impl FormFactors {
 
     /// Σⱼ Fᵢⱼ for every row.
     pub fn row_sums(&self) -> Vec<f32> {
-        self.matrix.rows().map(|r| r.1.iter().sum()).collect()
+        self.matrix.rows().map(|r| r.vals.iter().sum()).collect()
     }
 
     /// Non-zeros of F.
@@ -114,24 +114,18 @@ impl FormFactors {
 /// same time).
 const ROW_CHUNK: usize = 2048;
 
-/// F's CSR arrays, filled row by row in patch order.
+/// F, filled row by row in patch order.
 struct CsrBuilder {
     n: usize,
-    offsets: Vec<usize>,
-    cols: Vec<u32>,
-    vals: Vec<f32>,
+    matrix: Csr,
     stats: FormFactorStats,
 }
 
 impl CsrBuilder {
     fn new(n: usize) -> CsrBuilder {
-        let mut offsets = Vec::with_capacity(n + 1);
-        offsets.push(0);
         CsrBuilder {
             n,
-            offsets,
-            cols: Vec::new(),
-            vals: Vec::new(),
+            matrix: Csr::new(),
             stats: FormFactorStats::default(),
         }
     }
@@ -140,16 +134,13 @@ impl CsrBuilder {
     fn extend(&mut self, rows: impl IntoIterator<Item = (Vec<(u32, f32)>, FormFactorStats)>) {
         for (row, st) in rows {
             self.stats.add(&st);
-            self.cols.extend(row.iter().map(|e| e.0));
-            self.vals.extend(row.iter().map(|e| e.1));
-            self.offsets.push(self.cols.len());
+            self.matrix.push_row(row);
         }
     }
 
     fn finish(self) -> FormFactors {
-        let matrix = Csr::from_parts(self.n, self.offsets, self.cols, self.vals);
         FormFactors {
-            matrix,
+            matrix: self.matrix.square(self.n),
             stats: self.stats,
         }
     }

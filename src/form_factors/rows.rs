@@ -167,10 +167,6 @@ impl StoredColumns {
 
 impl ShootingRows for StoredColumns {
     fn shooting_row(&self, i: usize) -> (Vec<(u32, f32)>, f32) {
-        let (cols, vals) = self.transposed.row(i);
-        (
-            cols.iter().zip(vals).map(|(&j, &v)| (j, v)).collect(),
-            self.row_sums[i],
-        )
+        (self.transposed.row(i).iter().collect(), self.row_sums[i])
     }
 }

@@ -45,9 +45,9 @@ pub fn solve(f: &Csr, sys: &System) -> Option<Solution> {
 fn factor(f: &Csr, sys: &System, c: usize) -> DMatrix<f64> {
     let n = sys.len();
     let mut m = DMatrix::<f64>::identity(n, n);
-    for (i, (cols, vals)) in f.rows().enumerate() {
+    for (i, row) in f.rows().enumerate() {
         let rho = sys.albedo[i][c] as f64;
-        for (&j, &v) in cols.iter().zip(vals) {
+        for (j, v) in row.iter() {
             m[(i, j as usize)] -= rho * v as f64;
         }
     }

@@ -15,17 +15,16 @@ pub fn solve(
     advance: &dyn Fn(u64),
 ) -> Solution {
     let mut radiance = sys.initial_radiance();
-    let offsets = f.row_offsets();
-    let cols = f.col_indices();
-    let vals = f.values();
     let mut iterations = 0;
     let mut residual = 0.0f32;
     while iterations < max_iterations {
         let before = radiance.clone();
         for i in 0..radiance.len() {
             let mut h = sys.direct[i];
-            for k in offsets[i]..offsets[i + 1] {
-                h += radiance[cols[k] as usize] * vals[k];
+            for (c, v) in f.row(i).segments() {
+                for (j, &fij) in (c as usize..).zip(v) {
+                    h += radiance[j] * fij;
+                }
             }
             radiance[i] = sys.emission[i] + sys.albedo[i] * h;
         }
