@@ -18,7 +18,7 @@ use super::{FormFactorStats, FormFactors};
 use crate::sampling::{frame, offset_ray_origin};
 use crate::texels::EMPTY_ENTRY;
 use glam::{Vec2, Vec3};
-use wide::{f32x4, CmpLt};
+use wide::{f32x4, CmpGe, CmpGt, CmpLt};
 
 /// Delta form factors of one hemicube resolution.
 #[derive(Clone, Debug)]
@@ -290,13 +290,6 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
     }
 }
 
-/// ⌊x⌋ without a libm call (finite x within i64's range).
-#[inline(always)]
-fn floor(x: f32) -> i64 {
-    let i = x as i64;
-    i - i64::from((i as f32) > x)
-}
-
 /// Where patch i's hemicube stands: its eye, just off the surface, and
 /// the five face cameras (top, then the four half sides).
 pub(crate) struct Cameras {
@@ -376,14 +369,47 @@ impl CellPatches {
         }
     }
 
-    /// Where cell (`x`, `y`) of `page` is in [`CellPatches::entries`], if
-    /// on the page.
+    /// Where `page`'s first cell is in [`CellPatches::entries`].
     #[inline(always)]
-    fn slot(&self, page: u32, x: i64, y: i64) -> Option<usize> {
-        let (w, h) = (self.width as i64, self.height as i64);
-        ((0..w).contains(&x) && (0..h).contains(&y))
-            .then(|| ((page as i64 * h + y) * w + x) as usize)
+    fn page_start(&self, page: u32) -> usize {
+        page as usize * self.height as usize * self.width as usize
     }
+}
+
+/// The cell-map slots of four pixels of one triangle (barycentric
+/// weights (u, v) of its corners 1 and 2), or [`LAND`] off the page: the
+/// lightmap position t₀(1 − u − v) + t₁u + t₂v and its floor in the lanes
+/// of `f32x4`, each lane the arithmetic of [`Geometry::uv_lm_at`] and an
+/// exact floor, so the same cells as one pixel at a time. A NaN or a
+/// position out of `i32`'s range fails the bounds test (it truncates to
+/// `i32::MIN`).
+///
+/// [`Geometry::uv_lm_at`]: crate::geometry::Geometry::uv_lm_at
+#[inline(always)]
+fn cells4(cells: &CellPatches, page: usize, t: &[Vec2; 3], uv: [(f32, f32); 4]) -> [usize; 4] {
+    let u = f32x4::new(uv.map(|p| p.0));
+    let v = f32x4::new(uv.map(|p| p.1));
+    let w = f32x4::splat(1.0) - u - v;
+    let axis = |a: usize| {
+        let x = f32x4::splat(t[0][a]) * w + f32x4::splat(t[1][a]) * u + f32x4::splat(t[2][a]) * v;
+        let whole = x.fast_trunc_int().round_float();
+        // ⌊x⌋: the truncation, one less where it rounded up (x < 0).
+        whole - (whole.cmp_gt(x) & f32x4::splat(1.0))
+    };
+    let (x, y) = (axis(0), axis(1));
+    let (w, h) = (cells.width as f32, cells.height as f32);
+    let zero = f32x4::splat(0.0);
+    let inside =
+        (x.cmp_ge(zero) & x.cmp_lt(f32x4::splat(w)) & y.cmp_ge(zero) & y.cmp_lt(f32x4::splat(h)))
+            .move_mask();
+    let (xi, yi) = (x.fast_trunc_int().to_array(), y.fast_trunc_int().to_array());
+    std::array::from_fn(|k| {
+        if inside >> k & 1 == 1 {
+            page + yi[k] as usize * cells.width as usize + xi[k] as usize
+        } else {
+            LAND
+        }
+    })
 }
 
 /// What landing a patch's hemicube needs besides the scene: the delta
@@ -448,7 +474,7 @@ impl<'a> Resolve<'a> {
         let cube = &self.setup.cube;
         let weights = if face.side { &cube.side } else { &cube.top };
         self.stats.rays += pixels.len() as u64;
-        let mut slots = [0usize; BATCH];
+        let mut slots = [0usize; BATCH + 3];
         let mut owners = [0u32; BATCH];
         let mut entries = [0u64; BATCH];
         for (b, chunk) in pixels.chunks(BATCH).enumerate() {
@@ -467,47 +493,52 @@ impl<'a> Resolve<'a> {
     }
 
     /// Each pixel's slot in the cell map and its triangle's owner, or
-    /// [`ESCAPED`], [`BACK_FACE`] or [`LAND`].
+    /// [`ESCAPED`], [`BACK_FACE`] or [`LAND`]. Runs of pixels show one
+    /// triangle: its side, page and owner are found once per run, and its
+    /// pixels' cells four at a time ([`cells4`]).
     #[inline(always)]
-    fn cells_of(&self, chunk: &[Pixel], slots: &mut [usize; BATCH], owners: &mut [u32; BATCH]) {
+    fn cells_of(&self, chunk: &[Pixel], slots: &mut [usize; BATCH + 3], owners: &mut [u32; BATCH]) {
         let (s, eye) = (self.s, self.eye);
         let g = s.geometry;
-        // Runs of pixels show one triangle: its side, page and owner are
-        // found once per run.
-        let mut run: Option<(u32, bool, u32, u32)> = None;
-        for (k, px) in chunk.iter().enumerate() {
-            let tri = px.tri;
+        let cells = &self.setup.cells;
+        let mut k = 0;
+        while k < chunk.len() {
+            let tri = chunk[k].tri;
+            let end = k + chunk[k..].iter().take_while(|p| p.tri == tri).count();
+            let run = k..end;
+            k = end;
             if tri == u32::MAX {
-                slots[k] = ESCAPED;
+                slots[run].fill(ESCAPED);
                 continue;
             }
-            let (seen, page, owner) = match run {
-                Some((t, seen, page, owner)) if t == tri => (seen, page, owner),
-                _ => {
-                    let t = tri as usize;
-                    let seen = s.seen_from(tri, eye);
-                    let owner = if g.chart[t] == u32::MAX {
-                        u32::MAX
-                    } else {
-                        s.texels.owner(g.instance[t], g.chart[t])
-                    };
-                    run = Some((tri, seen, g.page[t], owner));
-                    (seen, g.page[t], owner)
-                }
-            };
-            if !seen {
-                slots[k] = BACK_FACE;
+            let t = tri as usize;
+            if !s.seen_from(tri, eye) {
+                slots[run].fill(BACK_FACE);
                 continue;
             }
-            let uv = g.uv_lm_at(tri, px.u, px.v);
-            slots[k] = match (owner != u32::MAX)
-                .then(|| self.setup.cells.slot(page, floor(uv.x), floor(uv.y)))
-                .flatten()
-            {
-                Some(slot) => slot,
-                None => LAND,
+            let owner = if g.chart[t] == u32::MAX {
+                u32::MAX
+            } else {
+                s.texels.owner(g.instance[t], g.chart[t])
             };
-            owners[k] = owner;
+            if owner == u32::MAX {
+                slots[run].fill(LAND);
+                continue;
+            }
+            owners[run.clone()].fill(owner);
+            let page = cells.page_start(g.page[t]);
+            let uv = &g.uv_lm[t];
+            let mut p = run.start;
+            while p < run.end {
+                let m = (run.end - p).min(4);
+                let lanes: [usize; 4] = std::array::from_fn(|i| p + i.min(m - 1));
+                let out = cells4(cells, page, uv, lanes.map(|i| (chunk[i].u, chunk[i].v)));
+                // All four lanes (a copy of a run-time length was a call
+                // to memcpy, 8 % of the time): those past the run are
+                // written again by the next run, or lie past the chunk.
+                slots[p..p + 4].copy_from_slice(&out);
+                p += m;
+            }
         }
     }
 
@@ -519,7 +550,7 @@ impl<'a> Resolve<'a> {
         &mut self,
         face: &Face,
         chunk: &[Pixel],
-        slots: &[usize; BATCH],
+        slots: &[usize; BATCH + 3],
         owners: &[u32; BATCH],
         entries: &[u64; BATCH],
         weights: &[f32],
@@ -572,10 +603,14 @@ impl<'a> Resolve<'a> {
     /// positive (the delta form factors are).
     pub(crate) fn finish(mut self) -> (Vec<(u32, f32)>, FormFactorStats) {
         let out = if self.touched.len() * 8 >= self.sums.len() {
-            (self.sums.iter().enumerate())
-                .filter(|(_, &v)| v != 0.0)
-                .map(|(j, &v)| (j as u32, v))
-                .collect()
+            // Sized before: a collect of a filter grew the row as it went.
+            let mut out = Vec::with_capacity(self.touched.len());
+            for (j, &v) in self.sums.iter().enumerate() {
+                if v != 0.0 {
+                    out.push((j as u32, v));
+                }
+            }
+            out
         } else {
             self.touched.sort_unstable();
             (self.touched.iter())
@@ -746,5 +781,52 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// [`cells4`] finds the cell that one pixel's arithmetic finds
+    /// (`Geometry::uv_lm_at`, then ⌊·⌋ and the page's bounds), for
+    /// positions inside, on and around the page, negative ones, NaN and
+    /// ones past `i32`'s range.
+    #[test]
+    fn four_cells_at_a_time_are_the_scalar_cells() {
+        let cells = CellPatches {
+            entries: Vec::new(),
+            width: 13,
+            height: 9,
+        };
+        let page = cells.page_start(2);
+        let one = |t: &[Vec2; 3], u: f32, v: f32| -> usize {
+            let p = t[0] * (1.0 - u - v) + t[1] * u + t[2] * v;
+            let (x, y) = (p.x.floor() as f64, p.y.floor() as f64);
+            if (0.0..13.0).contains(&x) && (0.0..9.0).contains(&y) {
+                page + y as usize * 13 + x as usize
+            } else {
+                LAND
+            }
+        };
+        let mut rng = crate::sampling::Stream::new(5, 0, 0);
+        let odd = [f32::NAN, 3e9, -3e9, -0.0, 13.0, 9.0, -1e-7, 12.999_999];
+        let mut checked = 0;
+        for round in 0..2000 {
+            let mut c = |k: usize| {
+                if round % 7 == 0 && k < odd.len() {
+                    odd[k]
+                } else {
+                    rng.next_f32() * 20.0 - 4.0
+                }
+            };
+            let t = [
+                Vec2::new(c(0), c(1)),
+                Vec2::new(c(2), c(3)),
+                Vec2::new(c(4), c(5)),
+            ];
+            let uv: [(f32, f32); 4] = std::array::from_fn(|_| (rng.next_f32(), rng.next_f32()));
+            let got = cells4(&cells, page, &t, uv);
+            for (k, &(u, v)) in uv.iter().enumerate() {
+                assert_eq!(got[k], one(&t, u, v), "round {round}, lane {k}");
+                checked += usize::from(got[k] != LAND);
+            }
+        }
+        assert!(checked > 1000, "most lanes land on the page ({checked})");
     }
 }
