@@ -255,9 +255,11 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
         // ones are tested and written one by one.
         let (k0, k1) = ((c.x - b.x) * (py - b.y), (a.x - c.x) * (py - c.y));
         let zero = f32x4::splat(0.0);
+        // Pixel centres x + 0.5 … x + 3.5: exact sums of small integers
+        // and halves, so the same bits as each centre's own conversion.
+        let offsets = f32x4::new([0.5, 1.5, 2.5, 3.5]);
         for x in (x0..x1).step_by(4) {
-            let lanes = [0, 1, 2, 3].map(|k| (x + k) as f32 + 0.5);
-            let px = f32x4::from(lanes);
+            let px = f32x4::splat(x as f32) + offsets;
             let w0 = (f32x4::splat(k0) - f32x4::splat(c.y - b.y) * (px - f32x4::splat(b.x)))
                 * f32x4::splat(inv_area);
             let w1 = (f32x4::splat(k1) - f32x4::splat(a.y - c.y) * (px - f32x4::splat(c.x)))
@@ -272,18 +274,46 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
             let iz = w0 * f32x4::splat(inv_z[0])
                 + w1 * f32x4::splat(inv_z[1])
                 + w2 * f32x4::splat(inv_z[2]);
-            let depth = (f32x4::splat(1.0) / iz).to_array();
-            let (w0, w1, w2) = (w0.to_array(), w1.to_array(), w2.to_array());
+            let depth = f32x4::splat(1.0) / iz;
+            // The perspective-correct weights, lane by lane as a `Vec2`'s
+            // arithmetic would give them.
+            let bz = |a: usize| {
+                ((f32x4::splat(bary_z[0][a]) * w0 + f32x4::splat(bary_z[1][a]) * w1)
+                    + f32x4::splat(bary_z[2][a]) * w2)
+                    * depth
+            };
+            let (u, v) = (bz(0).to_array(), bz(1).to_array());
+            let x = x as usize;
+            let write = |row: &mut [Pixel], k: usize, d: f32| {
+                row[x + k] = Pixel {
+                    depth: d,
+                    tri,
+                    u: u[k],
+                    v: v[k],
+                }
+            };
+            if covered == 0b1111 {
+                // Four pixels inside the row: one depth test of all four,
+                // and where all pass (most groups), four writes without a
+                // branch between them.
+                let old = f32x4::new([0, 1, 2, 3].map(|k| row[x + k].depth));
+                let pass = depth.cmp_lt(old).move_mask();
+                let depth = depth.to_array();
+                if pass == 0b1111 {
+                    for k in 0..4 {
+                        write(row, k, depth[k]);
+                    }
+                    continue;
+                }
+                for k in (0..4).filter(|k| pass >> k & 1 == 1) {
+                    write(row, k, depth[k]);
+                }
+                continue;
+            }
+            let depth = depth.to_array();
             for k in (0..4).filter(|k| covered >> k & 1 == 1) {
-                let px = &mut row[(x + k as i64) as usize];
-                if depth[k] < px.depth {
-                    let uv = (bary_z[0] * w0[k] + bary_z[1] * w1[k] + bary_z[2] * w2[k]) * depth[k];
-                    *px = Pixel {
-                        depth: depth[k],
-                        tri,
-                        u: uv.x,
-                        v: uv.y,
-                    };
+                if depth[k] < row[x + k].depth {
+                    write(row, k, depth[k]);
                 }
             }
         }
@@ -449,9 +479,12 @@ pub(crate) struct Resolve<'a> {
     s: &'a Surfaces<'a>,
     setup: &'a Setup,
     eye: Vec3,
-    /// Σ ΔF per patch, dense, and the patches touched (in first-seen order).
+    /// Σ ΔF per patch, dense, and the patches touched (in first-seen
+    /// order): `touched[..count]`, with room for every patch and one more,
+    /// as each pixel writes its patch there and counts it only if new.
     sums: Vec<f32>,
     touched: Vec<u32>,
+    count: usize,
     stats: FormFactorStats,
 }
 
@@ -462,7 +495,8 @@ impl<'a> Resolve<'a> {
             setup,
             eye,
             sums: vec![0.0; s.patches.len()],
-            touched: Vec::new(),
+            touched: vec![0; s.patches.len() + 1],
+            count: 0,
             stats: FormFactorStats::default(),
         }
     }
@@ -587,10 +621,12 @@ impl<'a> Resolve<'a> {
                     }
                 }
             };
-            if self.sums[j as usize] == 0.0 {
-                self.touched.push(j);
-            }
-            self.sums[j as usize] += weights[k];
+            // No branch on whether the patch is new: it was mispredicted
+            // on a furnace's first pixels of each patch.
+            let sum = self.sums[j as usize];
+            self.touched[self.count] = j;
+            self.count += usize::from(sum == 0.0);
+            self.sums[j as usize] = sum + weights[k];
         }
         self.stats.escaped += escaped;
     }
@@ -602,6 +638,7 @@ impl<'a> Resolve<'a> {
     /// of the furnace's form factors): the same row, as every sum seen is
     /// positive (the delta form factors are).
     pub(crate) fn finish(mut self) -> (Vec<(u32, f32)>, FormFactorStats) {
+        self.touched.truncate(self.count);
         let out = if self.touched.len() * 8 >= self.sums.len() {
             // Sized before: a collect of a filter grew the row as it went.
             let mut out = Vec::with_capacity(self.touched.len());
