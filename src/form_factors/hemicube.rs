@@ -300,8 +300,8 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
                 let pass = depth.cmp_lt(old).move_mask();
                 let depth = depth.to_array();
                 if pass == 0b1111 {
-                    for k in 0..4 {
-                        write(row, k, depth[k]);
+                    for (k, &d) in depth.iter().enumerate() {
+                        write(row, k, d);
                     }
                     continue;
                 }
