@@ -591,6 +591,10 @@ impl<'a> Resolve<'a> {
     ) {
         let (s, eye) = (self.s, self.eye);
         let mut escaped = 0u64;
+        // In locals, so that the loop keeps them in registers.
+        let mut stats = std::mem::take(&mut self.stats);
+        let mut count = self.count;
+        let (sums, touched) = (&mut self.sums[..], &mut self.touched[..]);
         for (k, px) in chunk.iter().enumerate() {
             let e = entries[k];
             let j = match slots[k] {
@@ -599,7 +603,7 @@ impl<'a> Resolve<'a> {
                     continue;
                 }
                 BACK_FACE => {
-                    self.stats.back_faces += 1;
+                    stats.back_faces += 1;
                     continue;
                 }
                 _ if e != EMPTY_ENTRY && (e >> 32) as u32 == owners[k] && e as u32 != SPLIT => {
@@ -611,11 +615,11 @@ impl<'a> Resolve<'a> {
                     match s.land(px.tri, px.u, px.v, dir) {
                         Landing::Texel(tx) => s.patches.of_texel[tx as usize].0,
                         Landing::BackFace => {
-                            self.stats.back_faces += 1;
+                            stats.back_faces += 1;
                             continue;
                         }
                         _ => {
-                            self.stats.unmapped += 1;
+                            stats.unmapped += 1;
                             continue;
                         }
                     }
@@ -623,12 +627,14 @@ impl<'a> Resolve<'a> {
             };
             // No branch on whether the patch is new: it was mispredicted
             // on a furnace's first pixels of each patch.
-            let sum = self.sums[j as usize];
-            self.touched[self.count] = j;
-            self.count += usize::from(sum == 0.0);
-            self.sums[j as usize] = sum + weights[k];
+            let sum = sums[j as usize];
+            touched[count] = j;
+            count += usize::from(sum == 0.0);
+            sums[j as usize] = sum + weights[k];
         }
-        self.stats.escaped += escaped;
+        stats.escaped += escaped;
+        self.stats = stats;
+        self.count = count;
     }
 
     /// The row, sorted by column, and its counters. Where the patches seen
