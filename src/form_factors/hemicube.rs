@@ -510,17 +510,9 @@ impl<'a> Resolve<'a> {
         self.stats.rays += pixels.len() as u64;
         let mut slots = [0usize; BATCH + 3];
         let mut owners = [0u32; BATCH];
-        let mut entries = [0u64; BATCH];
+        let mut entries = [0u64; BATCH + 3];
         for (b, chunk) in pixels.chunks(BATCH).enumerate() {
-            self.cells_of(chunk, &mut slots, &mut owners);
-            for k in 0..chunk.len() {
-                let slot = slots[k];
-                entries[k] = if slot < LAND {
-                    self.setup.cells.entries[slot]
-                } else {
-                    EMPTY_ENTRY
-                };
-            }
+            self.cells_of(chunk, &mut slots, &mut owners, &mut entries);
             let weights = &weights[b * BATCH..b * BATCH + chunk.len()];
             self.add(face, chunk, &slots, &owners, &entries, weights);
         }
@@ -531,7 +523,13 @@ impl<'a> Resolve<'a> {
     /// triangle: its side, page and owner are found once per run, and its
     /// pixels' cells four at a time ([`cells4`]).
     #[inline(always)]
-    fn cells_of(&self, chunk: &[Pixel], slots: &mut [usize; BATCH + 3], owners: &mut [u32; BATCH]) {
+    fn cells_of(
+        &self,
+        chunk: &[Pixel],
+        slots: &mut [usize; BATCH + 3],
+        owners: &mut [u32; BATCH],
+        entries: &mut [u64; BATCH + 3],
+    ) {
         let (s, eye) = (self.s, self.eye);
         let g = s.geometry;
         let cells = &self.setup.cells;
@@ -556,6 +554,7 @@ impl<'a> Resolve<'a> {
                 s.texels.owner(g.instance[t], g.chart[t])
             };
             if owner == u32::MAX {
+                entries[run.clone()].fill(EMPTY_ENTRY);
                 slots[run].fill(LAND);
                 continue;
             }
@@ -571,6 +570,16 @@ impl<'a> Resolve<'a> {
                 // to memcpy, 8 % of the time): those past the run are
                 // written again by the next run, or lie past the chunk.
                 slots[p..p + 4].copy_from_slice(&out);
+                // The four cells' entries, loaded together (their misses
+                // overlap; an entry is 4.5 texels from its neighbour's).
+                let e = out.map(|slot| {
+                    if slot < LAND {
+                        cells.entries[slot]
+                    } else {
+                        EMPTY_ENTRY
+                    }
+                });
+                entries[p..p + 4].copy_from_slice(&e);
                 p += m;
             }
         }
@@ -586,7 +595,7 @@ impl<'a> Resolve<'a> {
         chunk: &[Pixel],
         slots: &[usize; BATCH + 3],
         owners: &[u32; BATCH],
-        entries: &[u64; BATCH],
+        entries: &[u64; BATCH + 3],
         weights: &[f32],
     ) {
         let (s, eye) = (self.s, self.eye);
