@@ -417,9 +417,10 @@ fn rasterize_in_bands(scene: &Scene, atlas: &Atlas, geometry: &Geometry, band_ro
         })
         .collect();
     let unmapped = unmapped_triangles(geometry.len(), &per_band);
-    let mut tx = assemble(scene, atlas, geometry, per_band);
-    tx.unmapped_triangles += unmapped;
-    tx
+    Texels {
+        unmapped_triangles: unmapped,
+        ..assemble(scene, atlas, geometry, per_band)
+    }
 }
 
 /// The row bands `(instance, y0, y1)` of instance `inst`'s rectangle; one
@@ -685,9 +686,6 @@ fn assemble(scene: &Scene, atlas: &Atlas, geometry: &Geometry, bands: Vec<Band>)
 mod tests {
     use super::*;
 
-    /// A texel's packed index entry names it and its owner (instance, chart):
-    /// every texel of two instances of one mesh is found at its own lightmap
-    /// point for its own owner and for no other, and owners are distinct.
     /// Two unit quads at an angle (two charts), one mesh, two instances,
     /// and one degenerate triangle per instance.
     fn bent_scene() -> Scene {
@@ -742,6 +740,9 @@ mod tests {
         (scene, atlas, geometry)
     }
 
+    /// A texel's packed index entry names it and its owner (instance, chart):
+    /// every texel of two instances of one mesh is found at its own lightmap
+    /// point for its own owner and for no other, and owners are distinct.
     #[test]
     fn lookup_finds_texels_by_owner() {
         let (scene, atlas, geometry) = bent_atlas(8.0);

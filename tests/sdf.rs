@@ -220,17 +220,12 @@ fn resting_box_signs(name: &str, bottom: bool) -> (usize, usize) {
 #[test]
 fn open_box_agrees_with_the_closed_one_away_from_the_hole() {
     let (h, voxel) = (1.0f32, 0.1f32);
-    let (p, i) = cube(h, false);
-    let closed = bake(&mesh_scene("sdf-closed", &p, &i), voxel);
-    let (p, i) = cube(h, true);
-    let open = bake(&mesh_scene("sdf-open", &p, &i), voxel);
+    let (closed, open) = closed_and_open_boxes("sdf", h, voxel, |m| m);
     assert_eq!(closed.grid, open.grid);
     let (mut compared, mut near) = (0, 0);
     for k in 0..closed.grid.len() {
         let c = closed.grid.centre(k);
-        // Distance to the missing face's square (y = h, |x|, |z| ≤ h).
-        let q = Vec3::new(c.x.clamp(-h, h), h, c.z.clamp(-h, h));
-        if (c - q).length() <= voxel {
+        if near_the_hole(c, h, voxel) {
             near += 1;
             continue;
         }
@@ -245,6 +240,65 @@ fn open_box_agrees_with_the_closed_one_away_from_the_hole() {
     }
     eprintln!("{compared} voxels agree; {near} within a voxel of the hole not compared");
     assert!(compared > 5 * near);
+}
+
+/// The box of half-size `h` closed and open (no top face), each passed
+/// through `place` (into a room, or as it is), baked at `voxel`.
+fn closed_and_open_boxes(
+    name: &str,
+    h: f32,
+    voxel: f32,
+    place: impl Fn((Vec<[f32; 3]>, Vec<u32>)) -> (Vec<[f32; 3]>, Vec<u32>),
+) -> (Sdf, Sdf) {
+    let [closed, open] = [false, true].map(|hole| {
+        let (p, i) = place(cube(h, hole));
+        let which = if hole { "open" } else { "closed" };
+        bake(&mesh_scene(&format!("{name}-{which}"), &p, &i), voxel)
+    });
+    (closed, open)
+}
+
+/// Whether voxel centre `c` lies within a voxel of the open box's missing
+/// face (y = h, |x|, |z| ≤ h).
+fn near_the_hole(c: Vec3, h: f32, voxel: f32) -> bool {
+    let q = Vec3::new(c.x.clamp(-h, h), h, c.z.clamp(-h, h));
+    (c - q).length() <= voxel
+}
+
+/// The open box of [`open_box_agrees_with_the_closed_one_away_from_the_hole`],
+/// hung in a room (a floor 2 m below it,
+/// a ceiling 3 m above, 8 m across), where the air above its opening is
+/// open air far from any surface: its inside is still solid, as the
+/// closed box's, everywhere farther than a voxel from the opening. (A
+/// rule that gave each region of open air, joined through the opening,
+/// one sign by majority made 4,352 of these voxels free space.)
+#[test]
+fn open_box_in_a_room_agrees_with_the_closed_one() {
+    let (h, voxel) = (1.0f32, 0.1f32);
+    let floor = quad([-4.0, -3.0, -4.0], [0.0, 0.0, 8.0], [8.0, 0.0, 0.0]);
+    let ceiling = quad([-4.0, 4.0, -4.0], [8.0, 0.0, 0.0], [0.0, 0.0, 8.0]);
+    let in_room = |(mut p, mut i): (Vec<[f32; 3]>, Vec<u32>)| {
+        for f in [&floor, &ceiling] {
+            let base = p.len() as u32;
+            p.extend(f.0.clone());
+            i.extend(f.1.iter().map(|k| k + base));
+        }
+        (p, i)
+    };
+    let (closed, open) = closed_and_open_boxes("sdf-room", h, voxel, in_room);
+    let (mut compared, mut differ) = (0, 0);
+    for k in 0..closed.grid.len() {
+        let c = closed.grid.centre(k);
+        if near_the_hole(c, h, voxel) {
+            continue;
+        }
+        compared += 1;
+        differ += ((open.distance[k] < 0.0) != (closed.distance[k] < 0.0)) as u32;
+    }
+    let inside = closed.distance.iter().filter(|d| **d < 0.0).count();
+    eprintln!("{compared} voxels compared, {differ} differ; {inside} inside the closed box");
+    assert!(inside > 10_000, "{inside} voxels inside");
+    assert_eq!(differ, 0);
 }
 
 /// Sphere tracing against the BVH on the Cornell box (voxels of 1/128 of
@@ -740,43 +794,4 @@ fn floats(raw: &[u8]) -> Vec<f32> {
     raw.chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
         .collect()
-}
-
-/// The open box of the test above, hung in a room (a floor 2 m below it,
-/// a ceiling 3 m above, 8 m across), where the air above its opening is
-/// open air far from any surface: its inside is still solid, as the
-/// closed box's, everywhere farther than a voxel from the opening. (A
-/// rule that gave each region of open air, joined through the opening,
-/// one sign by majority made 4,352 of these voxels free space.)
-#[test]
-fn open_box_in_a_room_agrees_with_the_closed_one() {
-    let (h, voxel) = (1.0f32, 0.1f32);
-    let floor = quad([-4.0, -3.0, -4.0], [0.0, 0.0, 8.0], [8.0, 0.0, 0.0]);
-    let ceiling = quad([-4.0, 4.0, -4.0], [8.0, 0.0, 0.0], [0.0, 0.0, 8.0]);
-    let in_room = |(mut p, mut i): (Vec<[f32; 3]>, Vec<u32>)| {
-        for f in [&floor, &ceiling] {
-            let base = p.len() as u32;
-            p.extend(f.0.clone());
-            i.extend(f.1.iter().map(|k| k + base));
-        }
-        (p, i)
-    };
-    let (p, i) = in_room(cube(h, false));
-    let closed = bake(&mesh_scene("sdf-closed-room", &p, &i), voxel);
-    let (p, i) = in_room(cube(h, true));
-    let open = bake(&mesh_scene("sdf-open-room", &p, &i), voxel);
-    let (mut compared, mut differ) = (0, 0);
-    for k in 0..closed.grid.len() {
-        let c = closed.grid.centre(k);
-        let q = Vec3::new(c.x.clamp(-h, h), h, c.z.clamp(-h, h));
-        if (c - q).length() <= voxel {
-            continue;
-        }
-        compared += 1;
-        differ += ((open.distance[k] < 0.0) != (closed.distance[k] < 0.0)) as u32;
-    }
-    let inside = closed.distance.iter().filter(|d| **d < 0.0).count();
-    eprintln!("{compared} voxels compared, {differ} differ; {inside} inside the closed box");
-    assert!(inside > 10_000, "{inside} voxels inside");
-    assert_eq!(differ, 0);
 }
