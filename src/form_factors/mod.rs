@@ -134,7 +134,7 @@ impl CsrBuilder {
     fn extend(&mut self, rows: impl IntoIterator<Item = (Vec<(u32, f32)>, FormFactorStats)>) {
         for (row, st) in rows {
             self.stats.add(&st);
-            self.matrix.push_row(row);
+            self.matrix.push_sorted(&row);
         }
     }
 
