@@ -139,13 +139,19 @@ impl Csr {
     /// # Panics
     /// Where the columns do not rise (a caller's bug).
     pub fn push_sorted(&mut self, row: &[(u32, f32)]) {
-        assert!(u32::try_from(row.len()).is_ok(), "a row of under 2³² entries");
+        assert!(
+            u32::try_from(row.len()).is_ok(),
+            "a row of under 2³² entries"
+        );
         self.vals.extend(row.iter().map(|e| e.1));
         let mut prev: Option<u32> = None;
         for (k, &(c, _)) in row.iter().enumerate() {
             if prev.is_none_or(|p| p == u32::MAX || c != p + 1) {
                 assert!(prev.is_none_or(|p| c > p), "columns rise within a row");
-                self.runs.push(Run { col: c, at: k as u32 });
+                self.runs.push(Run {
+                    col: c,
+                    at: k as u32,
+                });
             }
             prev = Some(c);
         }
