@@ -971,6 +971,14 @@ pub fn texel_range(
     );
     let chunk = 256;
     let (lo, hi) = (range.start, range.end);
+    if lights.is_empty() {
+        // Nothing to sample (the furnace's emitting walls enter the
+        // solve; no lights, no sky): every texel's direct light is zero,
+        // as `direct_at` finds it, without its 80 sample points (0.3 s of
+        // the furnace box's bake).
+        advance((hi - lo) as u64);
+        return vec![TexelDirect::default(); hi - lo];
+    }
     let out: Vec<Vec<TexelDirect>> = (0..(hi - lo).div_ceil(chunk))
         .into_par_iter()
         .map(|c| {

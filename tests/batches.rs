@@ -110,3 +110,53 @@ fn landing_hits_together_equals_landing_each() {
         assert!(split > 0, "some hits land on split texels");
     });
 }
+
+/// Where nothing is sampled (no lights, no sampled emitters, a black
+/// sky), `direct::texel_range` skips every texel's sample points: each
+/// texel must get what sampling would give, nothing and no rays.
+#[test]
+fn nothing_to_sample_gives_what_sampling_nothing_gives() {
+    use radbake::direct::{self, Lights, Mis, TexelDirect, TexelSettings};
+    use radbake::sampling::Stream;
+    on_cornell(|scene, config, bake, s, _| {
+        let lights = Lights::new(
+            scene,
+            &bake.geometry,
+            &vec![false; scene.materials.len()],
+            Vec3::ZERO,
+        );
+        assert!(lights.is_empty() && scene.lights.is_empty());
+        let mis = Mis {
+            light: 16,
+            hemisphere: 16,
+        };
+        let settings = TexelSettings {
+            samples: 16,
+            hemisphere: 16,
+            mis,
+            supersample: 1,
+            seed: config.seed,
+        };
+        let n = s.texels.len();
+        let skipped = direct::texel_range(s, &lights, &settings, 0..n, &|_| {});
+        assert_eq!(skipped.len(), n);
+        let zero = |d: &TexelDirect| {
+            d.light == Vec3::ZERO
+                && d.mixed == Vec3::ZERO
+                && d.hemisphere == Vec3::ZERO
+                && d.local == Vec3::ZERO
+                && d.directional == [Vec3::ZERO; 3]
+                && d.rays == 0
+        };
+        for t in (0..n).step_by(7) {
+            assert!(zero(&skipped[t]), "texel {t}");
+            let sampler = s.texel_sampler(t as u32);
+            let mut rng = Stream::new(config.seed, 1, t as u64);
+            let points: Vec<_> = (0..16).map(|_| sampler.sample(rng.next_vec2())).collect();
+            let sampled = direct::direct_at(s, &lights, mis, &points, &points, &points, &mut rng);
+            assert!(zero(&sampled), "texel {t}: {sampled:?}");
+            let pieces = direct::pieces_direct(s, &lights, t, config.seed);
+            assert!(zero(&pieces), "texel {t}: {pieces:?}");
+        }
+    });
+}
