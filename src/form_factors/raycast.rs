@@ -488,13 +488,22 @@ pub fn compute_batched(
     caster.cast_batches(
         n,
         rpp,
-        &|i, out| out.copy_from_slice(&row_rays(s, i, rays_per_patch, seed)),
+        // A patch of fewer rays than a whole block's fills its slots with
+        // its last ray again; only its own rays are read.
+        &|i, out| {
+            let own = row_rays(s, i, patch_rays(s, i, rays_per_patch), seed);
+            let last = own.last().copied().unwrap_or((Vec3::ZERO, Vec3::Z));
+            for (k, slot) in out.iter_mut().enumerate() {
+                *slot = own.get(k).copied().unwrap_or(last);
+            }
+        },
         &mut |items, rays, hits| {
             let start = items.start;
             let results: Vec<_> = items
                 .into_par_iter()
                 .map(|i| {
-                    let k = (i - start) * rpp..(i - start + 1) * rpp;
+                    let first = (i - start) * rpp;
+                    let k = first..first + patch_rays(s, i, rays_per_patch) as usize;
                     let r = if s.patch_buried(i) {
                         (Vec::new(), FormFactorStats::default())
                     } else {
@@ -513,12 +522,28 @@ pub fn compute_batched(
     Ok(FormFactors::from_rows(n, rows, stats))
 }
 
-/// Row i of F, sorted by column.
-pub fn row(s: &Surfaces, i: usize, n_rays: u32, seed: u64) -> (Vec<(u32, f32)>, FormFactorStats) {
+/// The rays row i casts: `rays_per_patch`, shared by texels among the
+/// pieces of a block that burial planes split ([`Patches::block_share`]),
+/// at least a quarter each. A block split at a wall casts about the rays
+/// it cast whole: giving every piece a whole block's rays cost Sponza
+/// 19 % more form-factor rays.
+pub fn patch_rays(s: &Surfaces, i: usize, rays_per_patch: u32) -> u32 {
+    let most = rays_per_patch.max(1);
+    let n = (most as f32 * s.patches.block_share(i)).ceil() as u32;
+    n.clamp((most / 4).max(1), most)
+}
+
+/// Row i of F, sorted by column, from [`patch_rays`] rays.
+pub fn row(
+    s: &Surfaces,
+    i: usize,
+    rays_per_patch: u32,
+    seed: u64,
+) -> (Vec<(u32, f32)>, FormFactorStats) {
     if s.patch_buried(i) {
         return (Vec::new(), FormFactorStats::default());
     }
-    let rays = row_rays(s, i, n_rays, seed);
+    let rays = row_rays(s, i, patch_rays(s, i, rays_per_patch), seed);
     let hits: Vec<Option<Hit>> = rays
         .iter()
         .map(|&(o, d)| s.rays.closest_hit(o, d, f32::INFINITY))
