@@ -48,11 +48,6 @@ pub struct Patches {
     pub of_texel: Vec<PatchId>,
     /// Block key to patch.
     pub by_key: HashMap<BlockKey, PatchId>,
-    /// Texels of every patch of patch i's block (its instance and block
-    /// position, every region): more than its own where burial planes
-    /// split the block ([`Patches::block_share`]).
-    #[serde(default)]
-    pub block_texels: Vec<u32>,
 }
 
 impl Patches {
@@ -71,14 +66,13 @@ impl Patches {
         &self.texels[self.texel_start[i] as usize..self.texel_start[i + 1] as usize]
     }
 
-    /// Patch i's share of its block's texels: 1 for a whole block, a
-    /// chart's partial block or a merged one; less for a piece of a block
-    /// that burial planes split.
+    /// Patch i's texels as a share of a whole k × k block's, at most 1:
+    /// 1 for a whole block or a larger patch (a sliver merged into it),
+    /// less for a block cut by a chart's border or a piece of one that
+    /// burial planes split.
     pub fn block_share(&self, i: usize) -> f32 {
-        match self.block_texels.get(i) {
-            Some(&all) if all > 0 => self.texels_of(i).len() as f32 / all as f32,
-            _ => 1.0,
-        }
+        let whole = (self.block * self.block).max(1) as f32;
+        (self.texels_of(i).len() as f32 / whole).min(1.0)
     }
 
     /// Centre of block (bx, by) in texel coordinates.
@@ -189,9 +183,7 @@ pub fn build(texels: &Texels, burial: &Burial, k: u32, full_texel_area: &[f32]) 
         texels: grouped,
         of_texel,
         by_key,
-        block_texels: Vec::new(),
     };
-    patches.block_texels = block_texels(&patches);
     for i in 0..n {
         let (mut a, mut p, mut nrm, mut rho, mut e) =
             (0.0f32, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
@@ -216,40 +208,22 @@ pub fn build(texels: &Texels, burial: &Burial, k: u32, full_texel_area: &[f32]) 
     patches
 }
 
-/// [`Patches::block_texels`]: the texels of all patches of each patch's
-/// (instance, block x, block y).
-fn block_texels(p: &Patches) -> Vec<u32> {
-    let mut per_block: HashMap<(u32, u32, u32), u32> = HashMap::new();
-    for (i, &(inst, _, bx, by)) in p.key.iter().enumerate() {
-        *per_block.entry((inst, bx, by)).or_default() += p.texels_of(i).len() as u32;
-    }
-    (p.key.iter())
-        .map(|&(inst, _, bx, by)| per_block[&(inst, bx, by)])
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// Pieces of one block (two regions) share its texels; a block alone
-    /// has all of its own, in another instance or position.
+    /// A whole block and a larger patch have a share of 1; a partial
+    /// block or a piece of a split one its texels over k².
     #[test]
-    fn split_blocks_share_their_texels() {
-        let mut p = Patches {
+    fn patches_share_by_texels() {
+        let p = Patches {
             block: 4,
-            key: vec![(0, 0, 3, 5), (0, 1, 3, 5), (0, 0, 4, 5), (1, 0, 3, 5)],
-            texel_start: vec![0, 10, 16, 28, 31],
+            texel_start: vec![0, 16, 36, 46, 49],
+            texels: (0..49).collect(),
             ..Default::default()
         };
-        p.texels = (0..31).collect();
-        p.block_texels = block_texels(&p);
-        assert_eq!(p.block_texels, vec![16, 16, 12, 3]);
         let shares: Vec<f32> = (0..4).map(|i| p.block_share(i)).collect();
-        assert_eq!(shares, vec![0.625, 0.375, 1.0, 1.0]);
-        // Without the table (a patch set from before it): whole shares.
-        p.block_texels.clear();
-        assert_eq!(p.block_share(1), 1.0);
+        assert_eq!(shares, vec![1.0, 1.0, 0.625, 0.1875]);
     }
 
     #[test]

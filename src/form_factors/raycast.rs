@@ -522,11 +522,13 @@ pub fn compute_batched(
     Ok(FormFactors::from_rows(n, rows, stats))
 }
 
-/// The rays row i casts: `rays_per_patch`, shared by texels among the
-/// pieces of a block that burial planes split ([`Patches::block_share`]),
-/// at least a quarter each. A block split at a wall casts about the rays
-/// it cast whole: giving every piece a whole block's rays cost Sponza
-/// 19 % more form-factor rays.
+/// The rays row i casts: `rays_per_patch` for a whole k × k block (or a
+/// larger patch), in proportion to its texels for a smaller one (a block
+/// cut by a chart's border, a piece of one that burial planes split;
+/// [`Patches::block_share`]), at least a quarter of them: the same rays
+/// per texel, so about the same noise per unit of surface, where every
+/// patch used to cast a whole block's rays. Sponza's form-factor rays
+/// 11.92 → 6.45 M (its 4,562 charts leave most patches partial).
 pub fn patch_rays(s: &Surfaces, i: usize, rays_per_patch: u32) -> u32 {
     let most = rays_per_patch.max(1);
     let n = (most as f32 * s.patches.block_share(i)).ceil() as u32;
