@@ -112,29 +112,15 @@ impl Csr {
     /// # Panics
     /// Where they do not rise (a caller's bug, not bad input).
     pub fn push_row(&mut self, row: impl IntoIterator<Item = (u32, f32)>) {
-        let start = self.vals.len();
-        let mut last: Option<u32> = None;
-        for (c, v) in row {
-            match last {
-                Some(l) if c == l.wrapping_add(1) && l != u32::MAX => {}
-                Some(l) => {
-                    assert!(c > l, "columns rise within a row");
-                    self.push_run(c, start);
-                }
-                None => self.push_run(c, start),
-            }
-            last = Some(c);
-            self.vals.push(v);
-        }
-        self.offsets.push(self.vals.len());
-        self.run_offsets.push(self.runs.len());
+        let row: Vec<(u32, f32)> = row.into_iter().collect();
+        self.push_sorted(&row);
     }
 
     /// [`Csr::push_row`] of a row held as a slice: its values copied in
-    /// one pass and its runs found in another, with room made once, where
-    /// `push_row` pushed entry by entry (the furnace's 290 M entries are
-    /// appended while the other thread makes rows, so this copy held that
-    /// thread back from its share).
+    /// one pass and its runs found in another (F's rows are appended this
+    /// way while the other thread makes the next ones; pushing entry by
+    /// entry held that thread back from its share of the furnace's 290 M
+    /// entries).
     ///
     /// # Panics
     /// Where the columns do not rise (a caller's bug).
@@ -157,11 +143,6 @@ impl Csr {
         }
         self.offsets.push(self.vals.len());
         self.run_offsets.push(self.runs.len());
-    }
-
-    fn push_run(&mut self, col: u32, row_start: usize) {
-        let at = u32::try_from(self.vals.len() - row_start).expect("a row of under 2³² entries");
-        self.runs.push(Run { col, at });
     }
 
     /// Checks that the matrix is square: `n` rows, every column below `n`.
