@@ -148,10 +148,38 @@ pub fn run(
             patch_light: Some(patch_light),
         });
     }
-    // The gather reads H₁ wherever its rays land, and a texel buried in a
-    // wall holds the dark value of its buried centre (Sponza's ceiling
-    // gathered 8 % too little). A first, cheap validity estimate lets
-    // buried texels take their neighbours' H₁ before anything reads them.
+    let (pre, validity_rays) = pre_validity(s, config, &mut first, log);
+    rays.validity = validity_rays;
+    let inputs = GatherInputs {
+        sky,
+        first: &first,
+        pre: &pre,
+        direct: &direct,
+        patch_light: &patch_light,
+    };
+    let g = gather_stage(s, atlas, config, inputs, gpu.as_deref(), shard, log)?;
+    rays.gather = g.rays;
+    let light = gathered_light(s, atlas, config, direct, g, log);
+    Ok(TexelLight {
+        rays,
+        mixed,
+        patch_light: Some(patch_light),
+        ..light
+    })
+}
+
+/// Texel validity before the gather: the gather reads H₁ wherever its
+/// rays land, and a texel buried in a wall holds the dark value of its
+/// buried centre (Sponza's ceiling gathered 8 % too little). A first,
+/// cheap estimate (or the burial stage's, from folded points) lets buried
+/// texels take their neighbours' H₁ in `first` before anything reads
+/// them. Returns each texel's validity and the rays cast.
+fn pre_validity(
+    s: &Surfaces,
+    config: &BakeConfig,
+    first: &mut [Vec3],
+    log: &mut Log,
+) -> (Vec<bool>, u64) {
     log.begin("validity", s.texels.len() as u64);
     let (pre, validity_rays) = if s.burial.valid.is_empty() {
         let v = gather::validity(
@@ -167,15 +195,48 @@ pub fn run(
     };
     lightmap::fill_invalid(
         s.texels,
-        &mut first,
+        first,
         &pre,
         lightmap::fill_rings(config.patch_texels),
     );
-    rays.validity = validity_rays;
     log.end("validity");
+    (pre, validity_rays)
+}
 
+/// What the final gather reads: the sky, the first pass H₁ (`first`,
+/// invalid texels filled), the validity estimate before it (`pre`), the
+/// direct light and the patch solution.
+struct GatherInputs<'a> {
+    sky: &'a crate::sky::Sky,
+    first: &'a [Vec3],
+    pre: &'a [bool],
+    direct: &'a DirectLight,
+    patch_light: &'a PatchLight,
+}
+
+/// The final gather ([`Gatherer`]) with its near field and, with
+/// `gather_nee`, its light samples, on `gpu` where there is one, or the
+/// slices of `shard`.
+fn gather_stage(
+    s: &Surfaces,
+    atlas: &Atlas,
+    config: &BakeConfig,
+    inputs: GatherInputs,
+    gpu: Option<&dyn BatchCaster>,
+    shard: &Sharding,
+    log: &mut Log,
+) -> Result<Gathered> {
+    let GatherInputs {
+        sky,
+        first,
+        pre,
+        direct,
+        patch_light,
+    } = inputs;
+    let progress = log.progress();
+    let advance = |n| progress.advance(n);
     log.begin("final_gather", s.texels.len() as u64);
-    let gatherer = gatherer(s, &first, &direct, config, sky);
+    let gatherer = gatherer(s, first, direct, config, sky);
     // Close hits read the local lights at the point (see `NearField`):
     // within `gather_near_field` texels of the atlas's density (lowered to
     // fit `max_texels`) and the hit instance's texel scale.
@@ -184,7 +245,7 @@ pub fn run(
             config.gather_near_field,
             &texel_sizes(s, atlas),
             &direct.parts.local,
-            &pre,
+            pre,
             &direct.lights,
         ))
     } else {
@@ -205,7 +266,7 @@ pub fn run(
         None => gatherer,
     };
     let g = if shard.is_whole() {
-        final_gather(&gatherer, gpu.as_deref(), &advance, &mut log.warnings)
+        final_gather(&gatherer, gpu, &advance, &mut log.warnings)
     } else {
         // Slices of equal cost: a valid texel casts its rays, an invalid
         // one stops after a few.
@@ -224,14 +285,7 @@ pub fn run(
     shard.checkpoint(2, false)?;
     drop(lights);
     log.end("final_gather");
-    rays.gather = g.rays;
-    let light = gathered_light(s, atlas, config, direct, g, log);
-    Ok(TexelLight {
-        rays,
-        mixed,
-        patch_light: Some(patch_light),
-        ..light
-    })
+    Ok(g)
 }
 
 /// The final gather's settings over first pass `first`: its extras, the
