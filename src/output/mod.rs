@@ -347,30 +347,18 @@ pub fn write_snapshot_glb(
     write_bytes_atomic(path, &glb)
 }
 
-/// Writes the engine outputs into `out_dir`: `<stem>.baked.glb` (see
-/// [`baked`]), `lightmap_<page>_srgb.png` (value / scale, sRGB-encoded,
-/// the same images the .glb embeds) and `manifest.json` (per instance: the
-/// lightmap files, `uv_rect` in Bevy's convention, the PNG scale and the
-/// `MOZ_lightmap` intensity), and the probes' files ([`probes::write`])
-/// listed in the manifest with their transforms. Returns the paths written.
-///
-/// # Errors
-/// [`Error::Io`] / [`Error::Encode`].
-pub fn write_engine_outputs(
+/// Writes each lightmap page's 8-bit PNG (`encoded`) and, unless
+/// `ktx2 = "off"`, its KTX2 file, adding their paths to `written`; returns
+/// the manifest's `pages` entries (with the directional pages'
+/// names where the bake has them, which `write_extra_maps` writes).
+fn write_pages(
     out_dir: &Path,
-    stem: &str,
     bake: &crate::Bake,
-) -> Result<Vec<PathBuf>> {
-    let (scene, atlas, lightmaps) = (bake.scene, &bake.atlas, &bake.maps.lightmaps);
-    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io {
-        path: out_dir.to_path_buf(),
-        source,
-    })?;
-    let mut written = Vec::new();
+    encoded: &[png8::EncodedPage],
+    written: &mut Vec<PathBuf>,
+) -> Result<Vec<serde_json::Value>> {
+    let lightmaps = &bake.maps.lightmaps;
     let mut pages = Vec::new();
-    let encoded: Vec<png8::EncodedPage> = (0..lightmaps.pages.len())
-        .map(|page| png8::encode_page(lightmaps, atlas, page))
-        .collect();
     for (page, e) in encoded.iter().enumerate() {
         let name = format!("lightmap_{page}_srgb.png");
         write_bytes_atomic(&out_dir.join(&name), &e.png)?;
@@ -416,6 +404,33 @@ pub fn write_engine_outputs(
             pages[page]["sh"] = serde_json::Value::Object(sh);
         }
     }
+    Ok(pages)
+}
+
+/// Writes the engine outputs into `out_dir`: `<stem>.baked.glb` (see
+/// [`baked`]), `lightmap_<page>_srgb.png` (value / scale, sRGB-encoded,
+/// the same images the .glb embeds) and `manifest.json` (per instance: the
+/// lightmap files, `uv_rect` in Bevy's convention, the PNG scale and the
+/// `MOZ_lightmap` intensity), and the probes' files ([`probes::write`])
+/// listed in the manifest with their transforms. Returns the paths written.
+///
+/// # Errors
+/// [`Error::Io`] / [`Error::Encode`].
+pub fn write_engine_outputs(
+    out_dir: &Path,
+    stem: &str,
+    bake: &crate::Bake,
+) -> Result<Vec<PathBuf>> {
+    let (scene, atlas, lightmaps) = (bake.scene, &bake.atlas, &bake.maps.lightmaps);
+    std::fs::create_dir_all(out_dir).map_err(|source| Error::Io {
+        path: out_dir.to_path_buf(),
+        source,
+    })?;
+    let mut written = Vec::new();
+    let encoded: Vec<png8::EncodedPage> = (0..lightmaps.pages.len())
+        .map(|page| png8::encode_page(lightmaps, atlas, page))
+        .collect();
+    let pages = write_pages(out_dir, bake, &encoded, &mut written)?;
     let scale_of = |i: usize| encoded.iter().find_map(|e| e.scales[i]).unwrap_or(1.0);
     let mask = match &bake.shadowmask {
         Some(m) => {
