@@ -82,34 +82,9 @@ fn disk_point(d: Vec3, u: Vec2) -> Vec3 {
 
 /// Emits `count` photons and stores their diffuse hits.
 pub fn trace_photons(tracer: &Tracer, count: u64, seed: u64) -> PhotonMap {
-    let g = tracer.geometry;
-    let lights = &tracer.lights;
     let (centre, radius) = bounds(tracer);
     let disc = PI * radius * radius;
-    // Power of each source (W, summed over RGB for the choice).
-    let mut sources: Vec<(Source, f32)> = Vec::new();
-    let area_power = PI * lights.cdf.last().copied().unwrap_or(0.0);
-    if area_power > 0.0 {
-        sources.push((Source::Area, area_power));
-    }
-    for (i, l) in lights.punctual.iter().enumerate() {
-        let power = match l.kind {
-            LightKind::Directional => l.intensity.element_sum() * disc,
-            LightKind::Point => 4.0 * PI * l.intensity.element_sum(),
-            LightKind::Spot {
-                outer_cone_angle, ..
-            } => 2.0 * PI * (1.0 - outer_cone_angle.cos()) * l.intensity.element_sum(),
-        };
-        if power > 0.0 {
-            sources.push((Source::Punctual(i), power));
-        }
-    }
-    // A uniform sky (`sky_map` is refused with photon mapping).
-    let sky = lights.sky.mean();
-    let sky_power = 4.0 * PI * disc * sky.element_sum();
-    if sky_power > 0.0 {
-        sources.push((Source::Sky, sky_power));
-    }
+    let sources = photon_sources(tracer, disc);
     let total: f32 = sources.iter().map(|s| s.1).sum();
     if sources.is_empty() || count == 0 {
         return PhotonMap {
@@ -139,68 +114,10 @@ pub fn trace_photons(tracer: &Tracer, count: u64, seed: u64) -> PhotonMap {
                 let p_source = pick.1 / total;
                 let u = stratified((i % 64) as u32, 64, rng.next_vec2());
                 let v = rng.next_vec2();
-                let mut range = None;
-                let (origin, dir, flux) = match pick.0 {
-                    Source::Area => {
-                        let Some(ls) = lights.sample(g, u) else {
-                            continue;
-                        };
-                        let le = tracer
-                            .scene
-                            .emission_at(g.material[ls.tri as usize], g.uv0_at(ls.tri, ls.u, ls.v));
-                        let d = to_world(cosine_hemisphere(v), ls.normal);
-                        // Le cos / (p_A · cos/π) = Le π / p_A.
-                        (
-                            offset_ray_origin(ls.point, ls.normal),
-                            d,
-                            le * PI / (ls.pdf_area * p_source * n),
-                        )
-                    }
-                    Source::Punctual(k) => {
-                        let l = &lights.punctual[k];
-                        match l.kind {
-                            LightKind::Directional => {
-                                let d = l.direction.normalize();
-                                let o = centre - d * (2.0 * radius) + disk_point(d, u) * radius;
-                                (o, d, l.intensity * disc / (p_source * n))
-                            }
-                            LightKind::Point | LightKind::Spot { .. } => {
-                                // Uniform over the sphere (point) or the outer cone (spot).
-                                let cos_max = match l.kind {
-                                    LightKind::Spot {
-                                        outer_cone_angle, ..
-                                    } => outer_cone_angle.cos(),
-                                    _ => -1.0,
-                                };
-                                let z = 1.0 - u.x * (1.0 - cos_max);
-                                let r = (1.0 - z * z).max(0.0).sqrt();
-                                let phi = 2.0 * PI * u.y;
-                                let local = Vec3::new(r * phi.cos(), r * phi.sin(), z);
-                                let d = to_world(local, l.direction.normalize());
-                                let pdf = 1.0 / (2.0 * PI * (1.0 - cos_max));
-                                // Intensity towards d (cone falloff) from the
-                                // shared punctual evaluation at unit distance.
-                                let bare = crate::scene::Light {
-                                    range: None,
-                                    ..l.clone()
-                                };
-                                let i_d = direct::punctual_irradiance(&bare, l.position + d, -d)
-                                    .map_or(Vec3::ZERO, |(h, _, _)| h * PI);
-                                range = l.range.filter(|r| *r > 0.0);
-                                (l.position, d, i_d / (pdf * p_source * n))
-                            }
-                        }
-                    }
-                    Source::Sky => {
-                        // Incoming direction uniform over the sphere, origin
-                        // on a disc of the bounding sphere's radius.
-                        let z = 1.0 - 2.0 * v.x;
-                        let r = (1.0 - z * z).max(0.0).sqrt();
-                        let phi = 2.0 * PI * v.y;
-                        let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
-                        let o = centre - d * (2.0 * radius) + disk_point(d, u) * radius;
-                        (o, d, sky * (4.0 * PI * disc) / (p_source * n))
-                    }
+                let Some((origin, dir, flux, range)) =
+                    emit(tracer, pick.0, (p_source, n), (u, v), (centre, radius))
+                else {
+                    continue;
                 };
                 walk(tracer, origin, dir, flux, range, &mut rng, &mut out);
             }
@@ -214,6 +131,118 @@ pub fn trace_photons(tracer: &Tracer, count: u64, seed: u64) -> PhotonMap {
         photons,
         emitted: count,
     }
+}
+
+/// Every photon source with its power (W, summed over RGB for the
+/// choice): the sampled emitters together, each punctual light, and a
+/// uniform sky (`sky_map` is refused with photon mapping) over a disc of
+/// area `disc` (the scene's bounding sphere's cross-section).
+fn photon_sources(tracer: &Tracer, disc: f32) -> Vec<(Source, f32)> {
+    let lights = &tracer.lights;
+    // Power of each source (W, summed over RGB for the choice).
+    let mut sources: Vec<(Source, f32)> = Vec::new();
+    let area_power = PI * lights.cdf.last().copied().unwrap_or(0.0);
+    if area_power > 0.0 {
+        sources.push((Source::Area, area_power));
+    }
+    for (i, l) in lights.punctual.iter().enumerate() {
+        let power = match l.kind {
+            LightKind::Directional => l.intensity.element_sum() * disc,
+            LightKind::Point => 4.0 * PI * l.intensity.element_sum(),
+            LightKind::Spot {
+                outer_cone_angle, ..
+            } => 2.0 * PI * (1.0 - outer_cone_angle.cos()) * l.intensity.element_sum(),
+        };
+        if power > 0.0 {
+            sources.push((Source::Punctual(i), power));
+        }
+    }
+    // A uniform sky (`sky_map` is refused with photon mapping).
+    let sky = lights.sky.mean();
+    let sky_power = 4.0 * PI * disc * sky.element_sum();
+    if sky_power > 0.0 {
+        sources.push((Source::Sky, sky_power));
+    }
+    sources
+}
+
+/// One photon leaving `source`: its origin, direction, flux (the
+/// source's radiance or intensity over the pdf of the choice: the
+/// source's probability `p_source` × the `n` photons emitted × the
+/// direction's or point's pdf) and range (a punctual light's), from the
+/// stratified `u` and the uniform `v`; None where an emitter sample fails.
+fn emit(
+    tracer: &Tracer,
+    source: Source,
+    (p_source, n): (f32, f32),
+    (u, v): (Vec2, Vec2),
+    (centre, radius): (Vec3, f32),
+) -> Option<(Vec3, Vec3, Vec3, Option<f32>)> {
+    let (g, lights) = (tracer.geometry, &tracer.lights);
+    let disc = PI * radius * radius;
+    let mut range = None;
+    let (origin, dir, flux) = match source {
+        Source::Area => {
+            let ls = lights.sample(g, u)?;
+            let le = tracer
+                .scene
+                .emission_at(g.material[ls.tri as usize], g.uv0_at(ls.tri, ls.u, ls.v));
+            let d = to_world(cosine_hemisphere(v), ls.normal);
+            // Le cos / (p_A · cos/π) = Le π / p_A.
+            (
+                offset_ray_origin(ls.point, ls.normal),
+                d,
+                le * PI / (ls.pdf_area * p_source * n),
+            )
+        }
+        Source::Punctual(k) => {
+            let l = &lights.punctual[k];
+            match l.kind {
+                LightKind::Directional => {
+                    let d = l.direction.normalize();
+                    let o = centre - d * (2.0 * radius) + disk_point(d, u) * radius;
+                    (o, d, l.intensity * disc / (p_source * n))
+                }
+                LightKind::Point | LightKind::Spot { .. } => {
+                    // Uniform over the sphere (point) or the outer cone (spot).
+                    let cos_max = match l.kind {
+                        LightKind::Spot {
+                            outer_cone_angle, ..
+                        } => outer_cone_angle.cos(),
+                        _ => -1.0,
+                    };
+                    let z = 1.0 - u.x * (1.0 - cos_max);
+                    let r = (1.0 - z * z).max(0.0).sqrt();
+                    let phi = 2.0 * PI * u.y;
+                    let local = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                    let d = to_world(local, l.direction.normalize());
+                    let pdf = 1.0 / (2.0 * PI * (1.0 - cos_max));
+                    // Intensity towards d (cone falloff) from the
+                    // shared punctual evaluation at unit distance.
+                    let bare = crate::scene::Light {
+                        range: None,
+                        ..l.clone()
+                    };
+                    let i_d = direct::punctual_irradiance(&bare, l.position + d, -d)
+                        .map_or(Vec3::ZERO, |(h, _, _)| h * PI);
+                    range = l.range.filter(|r| *r > 0.0);
+                    (l.position, d, i_d / (pdf * p_source * n))
+                }
+            }
+        }
+        Source::Sky => {
+            // Incoming direction uniform over the sphere, origin
+            // on a disc of the bounding sphere's radius.
+            let z = 1.0 - 2.0 * v.x;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = 2.0 * PI * v.y;
+            let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+            let o = centre - d * (2.0 * radius) + disk_point(d, u) * radius;
+            let sky = lights.sky.mean();
+            (o, d, sky * (4.0 * PI * disc) / (p_source * n))
+        }
+    };
+    Some((origin, dir, flux, range))
 }
 
 /// Follows one photon, storing it at each diffuse hit.
