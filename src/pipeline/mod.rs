@@ -101,27 +101,7 @@ pub fn bake_with<'s>(
     progress: &dyn Progress,
     shard: &crate::shard::Sharding,
 ) -> Result<Bake<'s>> {
-    config.validate()?;
-    config.light_modes.check(scene)?;
-    let masked = crate::shadowmask::lights(&scene.lights).len();
-    if masked > crate::shadowmask::MAX_LIGHTS {
-        return Err(crate::Error::Config {
-            key: "light_modes".into(),
-            message: format!(
-                "{masked} shadowmask lights, above the limit of {}; make the others indirect",
-                crate::shadowmask::MAX_LIGHTS
-            ),
-        });
-    }
-    if config.sdf > 0
-        && config.sdf_bounds == crate::config::SdfBounds::ProbeVolumes
-        && scene.probe_volumes.is_empty()
-    {
-        return Err(crate::Error::Config {
-            key: "sdf_bounds".into(),
-            message: "probe-volumes: the scene has no probe volume (a node with extras.radbake.probe_volume); use \"scene\"".into(),
-        });
-    }
+    check_inputs(scene, config)?;
     // The sky map is read (and refused) before any work is done.
     let sky = config.load_sky()?;
     let mut log = Log::new(progress, input_warnings(scene));
@@ -201,13 +181,7 @@ pub fn bake_with<'s>(
 
     let sdf = (config.sdf > 0).then(|| {
         log.begin("sdf", 0);
-        let bounds = crate::sdf::bounds(scene, &geometry, config.sdf_bounds)
-            .unwrap_or((glam::Vec3::ZERO, glam::Vec3::ONE));
-        let settings = crate::sdf::Settings {
-            voxel: crate::sdf::voxel_for_resolution(bounds, config.sdf),
-            band: None,
-        };
-        let field = crate::sdf::bake_over(scene, &geometry, &rays, bounds, settings);
+        let field = sdf_stage(scene, &geometry, &rays, config);
         log.end("sdf");
         field
     });
@@ -228,6 +202,53 @@ pub fn bake_with<'s>(
         stages: log.stages,
         warnings: log.warnings,
     })
+}
+
+/// The settings and the scene together, refused before any work: the
+/// settings' own checks, the light modes against the scene's lights, at
+/// most [`crate::shadowmask::MAX_LIGHTS`] shadowmask lights, and probe
+/// volumes where the distance field is to cover them.
+fn check_inputs(scene: &Scene, config: &BakeConfig) -> Result<()> {
+    config.validate()?;
+    config.light_modes.check(scene)?;
+    let masked = crate::shadowmask::lights(&scene.lights).len();
+    if masked > crate::shadowmask::MAX_LIGHTS {
+        return Err(crate::Error::Config {
+            key: "light_modes".into(),
+            message: format!(
+                "{masked} shadowmask lights, above the limit of {}; make the others indirect",
+                crate::shadowmask::MAX_LIGHTS
+            ),
+        });
+    }
+    if config.sdf > 0
+        && config.sdf_bounds == crate::config::SdfBounds::ProbeVolumes
+        && scene.probe_volumes.is_empty()
+    {
+        return Err(crate::Error::Config {
+            key: "sdf_bounds".into(),
+            message: "probe-volumes: the scene has no probe volume (a node with extras.radbake.probe_volume); use \"scene\"".into(),
+        });
+    }
+    Ok(())
+}
+
+/// The signed distance field over the scene's bounds or its probe
+/// volumes' ([`crate::sdf`]), at `config.sdf` voxels along the longest
+/// side.
+fn sdf_stage(
+    scene: &Scene,
+    geometry: &Geometry,
+    rays: &RayCaster,
+    config: &BakeConfig,
+) -> crate::sdf::Sdf {
+    let bounds = crate::sdf::bounds(scene, geometry, config.sdf_bounds)
+        .unwrap_or((glam::Vec3::ZERO, glam::Vec3::ONE));
+    let settings = crate::sdf::Settings {
+        voxel: crate::sdf::voxel_for_resolution(bounds, config.sdf),
+        band: None,
+    };
+    crate::sdf::bake_over(scene, geometry, rays, bounds, settings)
 }
 
 impl<'s> Bake<'s> {
