@@ -392,98 +392,18 @@ fn import_nodes(
                 spacing,
             });
         }
+        let at = NodeAt {
+            node: &node,
+            world,
+            name: &node_name,
+            location: &location,
+            extras: &extras,
+        };
         if let Some(mesh) = node.mesh() {
-            let slot = match mesh_slot.get(&mesh.index()) {
-                Some(&s) => Some(s),
-                None => {
-                    let m = import_mesh(
-                        ctx,
-                        &mesh,
-                        buffers,
-                        fallback_material,
-                        &mut scene.stats,
-                        &mut scene.warnings,
-                    )?;
-                    if m.triangles.is_empty() {
-                        None
-                    } else {
-                        let s = scene.meshes.len() as u32;
-                        scene.meshes.push(m);
-                        mesh_slot.insert(mesh.index(), s);
-                        Some(s)
-                    }
-                }
-            };
-            if slot.is_none() && extras.texel_scale.is_some() {
-                scene.warnings.push(format!(
-                    "{location}.extras.radbake.texel_scale: the node has no mesh to bake; ignored"
-                ));
-            }
-            if let Some(mesh_index) = slot {
-                if world.determinant().abs() <= f32::MIN_POSITIVE {
-                    scene.warnings.push(format!(
-                        "{location}: transform has zero scale; instance skipped"
-                    ));
-                } else {
-                    let instance = Instance {
-                        node: node_name.clone(),
-                        node_index: node.index(),
-                        mesh: mesh_index,
-                        world_from_local: world,
-                        // The node's, else its mesh's, else the bake's; a
-                        // quarter of it without a lightmap (see
-                        // [`super::LIGHTMAPLESS_SCALE`]).
-                        texel_scale: extras
-                            .texel_scale
-                            .or(scene.meshes[mesh_index as usize].texel_scale)
-                            .unwrap_or(1.0)
-                            * if extras.lightmap == Some(false) {
-                                super::LIGHTMAPLESS_SCALE
-                            } else {
-                                1.0
-                            },
-                        cast_shadows: extras.cast_shadows.unwrap_or(true),
-                        lightmap: extras.lightmap.unwrap_or(true),
-                    };
-                    if extras.dynamic {
-                        scene.dynamic.push(instance);
-                    } else {
-                        scene.instances.push(instance);
-                    }
-                }
-            }
+            let sources = (buffers, fallback_material);
+            add_mesh_instance(ctx, &at, &mesh, sources, &mut mesh_slot, scene)?;
         }
-        if let Some(light) = node.light() {
-            check_light_json(ctx, document, light.index())?;
-            let mut light = import_light(ctx, &light, &world, &node_name)?;
-            light.node_index = node.index();
-            light.node_mode = extras.mode;
-            light.mode = extras.mode.unwrap_or_default();
-            let directional = light.kind == LightKind::Directional;
-            if let Some(r) = extras.radius {
-                if directional {
-                    scene.warnings.push(format!(
-                        "{location}.extras.radbake.radius: a directional light has no radius (use angle); ignored"
-                    ));
-                } else {
-                    light.radius = r;
-                }
-            }
-            if let Some(a) = extras.angle {
-                if directional {
-                    light.angle = a.to_radians();
-                } else {
-                    scene.warnings.push(format!(
-                        "{location}.extras.radbake.angle: only a directional light has an angle (use radius); ignored"
-                    ));
-                }
-            }
-            scene.lights.push(light);
-        } else if extras.mode.is_some() || extras.radius.is_some() || extras.angle.is_some() {
-            scene.warnings.push(format!(
-                "{location}.extras.radbake: mode, radius and angle are for a node with a light; this one has none, ignored"
-            ));
-        }
+        add_light(ctx, document, &at, scene)?;
         if let Some(camera) = node.camera() {
             if let gltf::camera::Projection::Perspective(p) = camera.projection() {
                 scene.cameras.push(Camera {
@@ -497,6 +417,134 @@ fn import_nodes(
         for child in node.children().collect::<Vec<_>>().into_iter().rev() {
             stack.push((child, world, depth + 1));
         }
+    }
+    Ok(())
+}
+
+/// Where a node stands while it is imported: the node, its world
+/// transform, its name, its place in the file (for messages) and its
+/// `extras.radbake`.
+struct NodeAt<'a, 'd> {
+    node: &'a gltf::Node<'d>,
+    world: Mat4,
+    name: &'a str,
+    location: &'a str,
+    extras: &'a NodeExtras,
+}
+
+/// Node `at`'s mesh (imported once per glTF mesh, `mesh_slot` mapping the
+/// glTF index to the scene's) and its instance: static or dynamic, with
+/// its texel scale; a warning where its transform has zero scale or the
+/// mesh has nothing to bake. `sources`: the buffers, and the material of
+/// primitives without one.
+fn add_mesh_instance(
+    ctx: &Ctx,
+    at: &NodeAt,
+    mesh: &gltf::Mesh,
+    (buffers, fallback_material): (&[Vec<u8>], u32),
+    mesh_slot: &mut HashMap<usize, u32>,
+    scene: &mut Scene,
+) -> Result<()> {
+    let (node, world, node_name, location, extras) =
+        (at.node, at.world, at.name, at.location, at.extras);
+    let slot = match mesh_slot.get(&mesh.index()) {
+        Some(&s) => Some(s),
+        None => {
+            let m = import_mesh(
+                ctx,
+                mesh,
+                buffers,
+                fallback_material,
+                &mut scene.stats,
+                &mut scene.warnings,
+            )?;
+            if m.triangles.is_empty() {
+                None
+            } else {
+                let s = scene.meshes.len() as u32;
+                scene.meshes.push(m);
+                mesh_slot.insert(mesh.index(), s);
+                Some(s)
+            }
+        }
+    };
+    if slot.is_none() && extras.texel_scale.is_some() {
+        scene.warnings.push(format!(
+            "{location}.extras.radbake.texel_scale: the node has no mesh to bake; ignored"
+        ));
+    }
+    if let Some(mesh_index) = slot {
+        if world.determinant().abs() <= f32::MIN_POSITIVE {
+            scene.warnings.push(format!(
+                "{location}: transform has zero scale; instance skipped"
+            ));
+        } else {
+            let instance = Instance {
+                node: node_name.to_owned(),
+                node_index: node.index(),
+                mesh: mesh_index,
+                world_from_local: world,
+                // The node's, else its mesh's, else the bake's; a
+                // quarter of it without a lightmap (see
+                // [`super::LIGHTMAPLESS_SCALE`]).
+                texel_scale: extras
+                    .texel_scale
+                    .or(scene.meshes[mesh_index as usize].texel_scale)
+                    .unwrap_or(1.0)
+                    * if extras.lightmap == Some(false) {
+                        super::LIGHTMAPLESS_SCALE
+                    } else {
+                        1.0
+                    },
+                cast_shadows: extras.cast_shadows.unwrap_or(true),
+                lightmap: extras.lightmap.unwrap_or(true),
+            };
+            if extras.dynamic {
+                scene.dynamic.push(instance);
+            } else {
+                scene.instances.push(instance);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Node `at`'s light (`KHR_lights_punctual`), with its `extras.radbake`
+/// mode, radius and angle; a warning where those are set on a node
+/// without a light, or on the wrong kind of light.
+fn add_light(ctx: &Ctx, document: &gltf::Document, at: &NodeAt, scene: &mut Scene) -> Result<()> {
+    let (node, world, node_name, location, extras) =
+        (at.node, at.world, at.name, at.location, at.extras);
+    if let Some(light) = node.light() {
+        check_light_json(ctx, document, light.index())?;
+        let mut light = import_light(ctx, &light, &world, node_name)?;
+        light.node_index = node.index();
+        light.node_mode = extras.mode;
+        light.mode = extras.mode.unwrap_or_default();
+        let directional = light.kind == LightKind::Directional;
+        if let Some(r) = extras.radius {
+            if directional {
+                scene.warnings.push(format!(
+                    "{location}.extras.radbake.radius: a directional light has no radius (use angle); ignored"
+                ));
+            } else {
+                light.radius = r;
+            }
+        }
+        if let Some(a) = extras.angle {
+            if directional {
+                light.angle = a.to_radians();
+            } else {
+                scene.warnings.push(format!(
+                    "{location}.extras.radbake.angle: only a directional light has an angle (use radius); ignored"
+                ));
+            }
+        }
+        scene.lights.push(light);
+    } else if extras.mode.is_some() || extras.radius.is_some() || extras.angle.is_some() {
+        scene.warnings.push(format!(
+            "{location}.extras.radbake: mode, radius and angle are for a node with a light; this one has none, ignored"
+        ));
     }
     Ok(())
 }
