@@ -492,6 +492,50 @@ impl<'t, 'a> Bdpt<'t, 'a> {
         );
         let mut l = sky;
         // Light subpath from a finite light.
+        let light = self.light_subpath(rng);
+
+        // t = 1: light subpath vertices seen by the camera, splatted.
+        self.splat_light_vertices((view, aspect, film_area), &light, &camera, splats);
+
+        for t in 2..=camera.len() {
+            let pt = camera[t - 1];
+            let Kind::Surface { albedo, .. } = pt.kind else {
+                continue;
+            };
+            // Directional lights: one shadow ray, the only strategy (weight 1).
+            for light in &tracer.lights.punctual {
+                if light.kind == LightKind::Directional {
+                    if let Some((value, to, _)) = punctual_irradiance(light, pt.p, pt.n) {
+                        if tracer
+                            .rays
+                            .unoccluded(offset_ray_origin(pt.p, pt.n), to, f32::INFINITY)
+                        {
+                            l += pt.beta * albedo * value;
+                        }
+                    }
+                }
+            }
+            for s in 0..=light.len() {
+                if s + t - 2 > MAX_DEPTH {
+                    break;
+                }
+                let Some((contribution, sampled)) = self.strategy(&pt, &light, s, rng) else {
+                    continue;
+                };
+                if contribution.max_element() <= 0.0 {
+                    continue;
+                }
+                l += contribution * mis_weight(tracer, choice, &light, &camera, sampled, s, t);
+            }
+        }
+        l
+    }
+
+    /// A light subpath from a finite light: its first vertex chosen by
+    /// power, then a cosine-weighted (area light) or uniform (point light)
+    /// direction and the walk; empty where there is no finite light.
+    fn light_subpath(&self, rng: &mut Stream) -> Vec<Vertex> {
+        let (tracer, choice) = (self.tracer, &self.choice);
         let mut light: Vec<Vertex> = Vec::new();
         if !choice.is_empty() {
             if let Some(z0) = choice.sample(tracer, rng) {
@@ -533,8 +577,21 @@ impl<'t, 'a> Bdpt<'t, 'a> {
                 }
             }
         }
+        light
+    }
 
-        // t = 1: light subpath vertices seen by the camera, splatted.
+    /// The t = 1 strategies (light tracing): every light subpath vertex
+    /// that the camera of `view` sees, splatted to its film point with
+    /// its MIS weight.
+    fn splat_light_vertices(
+        &self,
+        (view, aspect, film_area): (&super::view::View, f32, f32),
+        light: &[Vertex],
+        camera: &[Vertex],
+        splats: &mut Vec<(glam::Vec2, Vec3)>,
+    ) {
+        let (tracer, choice) = (self.tracer, &self.choice);
+        let eye = view.eye;
         let cam = camera[0];
         for s in 2..=light.len().min(MAX_DEPTH + 1) {
             let qs = light[s - 1];
@@ -556,103 +613,86 @@ impl<'t, 'a> Bdpt<'t, 'a> {
             let we = 1.0 / (film_area * cos_cam.powi(4));
             let c = qs.beta * f_q * (qs.n.dot(w).abs() * cos_cam / dist2) * we;
             if c.max_element() > 0.0 {
-                let weight = mis_weight(tracer, choice, &light, &camera, None, s, 1);
+                let weight = mis_weight(tracer, choice, light, camera, None, s, 1);
                 splats.push((film, c * weight));
             }
         }
+    }
 
-        for t in 2..=camera.len() {
-            let pt = camera[t - 1];
-            let Kind::Surface {
-                albedo, emission, ..
-            } = pt.kind
-            else {
-                continue;
-            };
-            // Directional lights: one shadow ray, the only strategy (weight 1).
-            for light in &tracer.lights.punctual {
-                if light.kind == LightKind::Directional {
-                    if let Some((value, to, _)) = punctual_irradiance(light, pt.p, pt.n) {
-                        if tracer
-                            .rays
-                            .unoccluded(offset_ray_origin(pt.p, pt.n), to, f32::INFINITY)
-                        {
-                            l += pt.beta * albedo * value;
-                        }
-                    }
+    /// Strategy (s, t) at camera vertex `pt` (t ≥ 2): the emission `pt`
+    /// sees (s = 0), a new light sample connected to it (s = 1, returned
+    /// as the vertex the MIS weight needs) or the connection to light
+    /// subpath vertex s; None where it brings nothing or is occluded.
+    fn strategy(
+        &self,
+        pt: &Vertex,
+        light: &[Vertex],
+        s: usize,
+        rng: &mut Stream,
+    ) -> Option<(Vec3, Option<Vertex>)> {
+        let (tracer, choice) = (self.tracer, &self.choice);
+        let Kind::Surface {
+            albedo, emission, ..
+        } = pt.kind
+        else {
+            return None;
+        };
+        let (contribution, sampled) = match s {
+            0 => {
+                if emission == Vec3::ZERO
+                    || tracer
+                        .lights
+                        .emitter_index(match pt.kind {
+                            Kind::Surface { tri, .. } => tri,
+                            _ => u32::MAX,
+                        })
+                        .is_none()
+                {
+                    return None;
                 }
+                (pt.beta * emission, None)
             }
-            for s in 0..=light.len() {
-                if s + t - 2 > MAX_DEPTH {
-                    break;
-                }
-                let (contribution, sampled) = match s {
-                    0 => {
-                        if emission == Vec3::ZERO
-                            || tracer
-                                .lights
-                                .emitter_index(match pt.kind {
-                                    Kind::Surface { tri, .. } => tri,
-                                    _ => u32::MAX,
-                                })
-                                .is_none()
-                        {
-                            continue;
+            1 => {
+                let mut q = choice.sample(tracer, rng)?;
+                let d = pt.p - q.p;
+                let dist2 = d.length_squared();
+                let w = d / dist2.sqrt();
+                let emitted = match q.kind {
+                    Kind::AreaLight { le, .. } => {
+                        if q.n.dot(w) <= 0.0 {
+                            return None;
                         }
-                        (pt.beta * emission, None)
+                        le * q.n.dot(w)
                     }
-                    1 => {
-                        let Some(mut q) = choice.sample(tracer, rng) else {
-                            continue;
-                        };
-                        let d = pt.p - q.p;
-                        let dist2 = d.length_squared();
-                        let w = d / dist2.sqrt();
-                        let emitted = match q.kind {
-                            Kind::AreaLight { le, .. } => {
-                                if q.n.dot(w) <= 0.0 {
-                                    continue;
-                                }
-                                le * q.n.dot(w)
-                            }
-                            Kind::PointLight { i } => point_intensity(tracer, i, w, dist2.sqrt()),
-                            _ => continue,
-                        };
-                        let cos_pt = pt.n.dot(-w);
-                        if cos_pt <= 0.0
-                            || emitted.max_element() <= 0.0
-                            || !visible(tracer, &pt, &q)
-                        {
-                            continue;
-                        }
-                        // pt.β f Le cos_q cos_pt / (d² p_A)  (point: I cos_pt / (d² p)).
-                        let c = pt.beta * (albedo / PI) * emitted * cos_pt / (dist2 * q.pdf_fwd);
-                        q.beta = Vec3::ONE;
-                        (c, Some(q))
-                    }
-                    _ => {
-                        let qs = light[s - 1];
-                        let f_q = qs.f(&pt);
-                        let f_p = pt.f(&qs);
-                        if f_q == Vec3::ZERO || f_p == Vec3::ZERO {
-                            continue;
-                        }
-                        let d = qs.p - pt.p;
-                        let dist2 = d.length_squared();
-                        let w = d / dist2.sqrt();
-                        let g = pt.n.dot(w).abs() * qs.n.dot(w).abs() / dist2;
-                        if !visible(tracer, &pt, &qs) {
-                            continue;
-                        }
-                        (qs.beta * f_q * g * f_p * pt.beta, None)
-                    }
+                    Kind::PointLight { i } => point_intensity(tracer, i, w, dist2.sqrt()),
+                    _ => return None,
                 };
-                if contribution.max_element() <= 0.0 {
-                    continue;
+                let cos_pt = pt.n.dot(-w);
+                if cos_pt <= 0.0 || emitted.max_element() <= 0.0 || !visible(tracer, pt, &q) {
+                    return None;
                 }
-                l += contribution * mis_weight(tracer, choice, &light, &camera, sampled, s, t);
+                // pt.β f Le cos_q cos_pt / (d² p_A)  (point: I cos_pt / (d² p)).
+                let c = pt.beta * (albedo / PI) * emitted * cos_pt / (dist2 * q.pdf_fwd);
+                q.beta = Vec3::ONE;
+                (c, Some(q))
             }
-        }
-        l
+            _ => {
+                let qs = light[s - 1];
+                let f_q = qs.f(pt);
+                let f_p = pt.f(&qs);
+                if f_q == Vec3::ZERO || f_p == Vec3::ZERO {
+                    return None;
+                }
+                let d = qs.p - pt.p;
+                let dist2 = d.length_squared();
+                let w = d / dist2.sqrt();
+                let g = pt.n.dot(w).abs() * qs.n.dot(w).abs() / dist2;
+                if !visible(tracer, pt, &qs) {
+                    return None;
+                }
+                (qs.beta * f_q * g * f_p * pt.beta, None)
+            }
+        };
+        Some((contribution, sampled))
     }
 }
