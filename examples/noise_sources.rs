@@ -14,7 +14,7 @@
 //! KEY=VALUE pairs are settings as in a `--config` TOML file.
 
 use glam::{Vec2, Vec3};
-use radbake::form_factors::raycast::{Landing, Surfaces};
+use radbake::form_factors::raycast::Landing;
 use radbake::{BakeConfig, Silent};
 use std::collections::HashMap;
 
@@ -142,14 +142,7 @@ fn buckets(texels: &[Noisy], name: &str, keep: impl Fn(&Noisy) -> bool + Copy) {
 fn composition(a: &radbake::pipeline::Bake, tail: &[&Noisy], sky: f64) {
     let tx = &a.texels;
     let rays = radbake::raycast::RayCaster::new(a.scene, &a.geometry);
-    let s = Surfaces {
-        scene: a.scene,
-        geometry: &a.geometry,
-        texels: tx,
-        patches: &a.patches,
-        rays: &rays,
-        burial: &a.burial,
-    };
+    let s = a.surfaces(&rays);
     let lum = |v: Vec3| v.element_sum() as f64 / 3.0;
     let values = &a.maps.lightmaps.texel_values;
     let mut rng = radbake::sampling::Stream::new(7, 0, 0);
