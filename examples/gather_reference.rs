@@ -13,12 +13,25 @@
 //! - every instance's area-weighted mean against the reference's, for
 //!   instances of at least `min_area` m² (default 10): the largest
 //!   difference and how many differ by more than 0.5 %; with `detail=1`,
-//!   the largest instance's texels that differ most.
+//!   the largest instance's texels that differ most;
+//! - each such instance's standard error, from the gather's own variance
+//!   estimate per texel (`TexelLight::variance`): Var(mean) = Σ a² var / (Σ
+//!   a)², the bake's and the reference's added. The denoiser conserves each
+//!   chart's power, so it does not change an instance's mean, and with the
+//!   same seed the two bakes share every stage before the gather: the
+//!   difference of the means is the two gathers' noise (and any bias). The
+//!   issue's rule is "within 0.5 % or 3 standard errors"; the RMS of the
+//!   instances' z-scores says whether the standard errors are right (about
+//!   1 when they are and nothing is biased).
 //!
 //! Usage:
 //!
 //!     cargo run --release --example gather_reference -- SCENE \
 //!         cache=/tmp/ref.bin [ref_rays=4096] [ref_seed=N] [min_area=10] [KEY=VALUE ...]
+//!
+//! `ref_only=1` stops once the reference is cached (to make a reference
+//! of other settings, e.g. `ref=same method='"pathtrace"'
+//! path_samples=16384`, then compare bakes of any settings with it).
 //!
 //! `ref_seed` bakes the reference with another seed (default: the
 //! bake's): with the same seed, every stage before the gather draws the
@@ -41,6 +54,7 @@ fn main() -> anyhow::Result<()> {
     let mut ref_seed = None;
     let mut same = false;
     let mut detail = false;
+    let mut ref_only = false;
     let mut toml = String::new();
     for a in args {
         match a.split_once('=') {
@@ -50,6 +64,7 @@ fn main() -> anyhow::Result<()> {
             Some(("ref_seed", v)) => ref_seed = Some(v.parse()?),
             Some(("ref", "same")) => same = true,
             Some(("detail", v)) => detail = v == "1",
+            Some(("ref_only", v)) => ref_only = v == "1",
             _ => toml += &(a + "\n"),
         }
     }
@@ -77,20 +92,33 @@ fn main() -> anyhow::Result<()> {
             };
             let b = radbake::bake(&scene, &reference, &Silent)?;
             println!(
-                "reference ({ref_rays} rays): {:.1} s",
+                "reference ({}): {:.1} s",
+                if same {
+                    format!("the bake's settings, seed {seed}")
+                } else {
+                    format!("{ref_rays} rays")
+                },
                 t.elapsed().as_secs_f64()
             );
-            let r: Vec<(Vec3, bool)> = (b.maps.lightmaps.texel_values.iter())
+            let r: Vec<Texel> = (b.maps.lightmaps.texel_values.iter())
                 .zip(&b.transport.valid)
-                .map(|(&v, &ok)| (v, ok))
+                .enumerate()
+                .map(|(i, (&v, &ok))| (v, ok, variance(&b.transport.variance, i)))
                 .collect();
             write(&cache, &r)?;
             r
         }
     };
+    if ref_only {
+        return Ok(());
+    }
     let t = Instant::now();
     let b = radbake::bake(&scene, &config, &Silent)?;
-    println!("bake: {:.1} s", t.elapsed().as_secs_f64());
+    println!(
+        "bake: {:.1} s, {} gather rays",
+        t.elapsed().as_secs_f64(),
+        b.transport.rays.gather
+    );
     anyhow::ensure!(
         reference.len() == b.texels.len(),
         "the reference has {} texels, the bake {} (other settings?)",
@@ -137,27 +165,46 @@ fn main() -> anyhow::Result<()> {
     );
     // Instance means over the texels valid in both (area-weighted).
     let instances = scene.instances.len();
-    let mut sums = vec![(0.0f64, 0.0f64, 0.0f64); instances];
+    // Per instance: Σ a·value, Σ a·reference, Σ a, Σ a²·(var + var_ref).
+    let mut sums = vec![[0.0f64; 4]; instances];
     for &i in &valid {
         let k = b.texels.instance[i] as usize;
         let a = b.texels.area[i] as f64;
-        sums[k].0 += a * lum(values[i]);
-        sums[k].1 += a * lum(reference[i].0);
-        sums[k].2 += a;
+        sums[k][0] += a * lum(values[i]);
+        sums[k][1] += a * lum(reference[i].0);
+        sums[k][2] += a;
+        sums[k][3] += a * a * (variance(&b.transport.variance, i) + reference[i].2) as f64;
     }
     let mut worst: (f64, Option<usize>) = (0.0, None);
-    let (mut counted, mut off) = (0, 0);
-    for (k, &(x, r, area)) in sums.iter().enumerate() {
+    let mut worst_z: (f64, f64, Option<usize>) = (0.0, 0.0, None);
+    let (mut counted, mut off, mut beyond, mut z_sq) = (0, 0, 0, 0.0f64);
+    for (k, &[x, r, area, var]) in sums.iter().enumerate() {
         if area < min_area || r <= 0.0 {
             continue;
         }
         counted += 1;
         let d = (x - r) / r;
+        // Standard error of the difference of the two means.
+        let se = var.sqrt() / area;
+        let z = if se > 0.0 { (x - r) / area / se } else { 0.0 };
+        z_sq += z * z;
         if d.abs() > 0.005 {
             off += 1;
+            if z.abs() > 3.0 {
+                beyond += 1;
+                println!(
+                    "  {}: {:+.3} %, {z:+.2} standard errors (standard error {:.3} % of its mean)",
+                    scene.instances[k].node,
+                    100.0 * d,
+                    100.0 * se * area / r
+                );
+            }
         }
         if d.abs() > worst.0.abs() {
             worst = (d, Some(k));
+        }
+        if z.abs() > worst_z.0.abs() {
+            worst_z = (z, d, Some(k));
         }
     }
     let name = |k: Option<usize>| k.map_or(String::new(), |k| scene.instances[k].node.clone());
@@ -212,29 +259,47 @@ fn main() -> anyhow::Result<()> {
         100.0 * worst.0,
         name(worst.1)
     );
+    println!(
+        "standard errors: {beyond} of the {off} differ by more than 3 as well (the issue's rule: within 0.5 % or 3 standard errors); largest {:+.2} ({}, {:+.3} %); RMS of the z-scores {:.2}",
+        worst_z.0,
+        name(worst_z.2),
+        100.0 * worst_z.1,
+        (z_sq / counted.max(1) as f64).sqrt()
+    );
     Ok(())
 }
 
-/// The cached reference: per texel, its value and validity.
-fn read(path: &std::path::Path) -> Option<Vec<(Vec3, bool)>> {
-    let bytes = std::fs::read(path).ok()?;
-    let out: Vec<(Vec3, bool)> = bytes
-        .chunks_exact(13)
-        .map(|c| {
-            let f = |k: usize| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap());
-            (Vec3::new(f(0), f(1), f(2)), c[12] != 0)
-        })
-        .collect();
-    (bytes.len() % 13 == 0).then_some(out)
+/// A reference texel: its value, validity and the gather's variance of it.
+type Texel = (Vec3, bool, f32);
+
+/// Texel `i`'s gather variance (0 without a final gather).
+fn variance(v: &[f32], i: usize) -> f32 {
+    v.get(i).copied().unwrap_or(0.0)
 }
 
-fn write(path: &std::path::Path, r: &[(Vec3, bool)]) -> anyhow::Result<()> {
-    let mut bytes = Vec::with_capacity(r.len() * 13);
-    for (v, ok) in r {
+/// The cached reference: per texel, its value, validity and variance.
+fn read(path: &std::path::Path) -> Option<Vec<Texel>> {
+    let bytes = std::fs::read(path).ok()?;
+    let out: Vec<Texel> = bytes
+        .chunks_exact(17)
+        .map(|c| {
+            let f = |k: usize| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap());
+            (Vec3::new(f(0), f(1), f(2)), c[12] != 0, {
+                f32::from_le_bytes(c[13..17].try_into().unwrap())
+            })
+        })
+        .collect();
+    (bytes.len() % 17 == 0).then_some(out)
+}
+
+fn write(path: &std::path::Path, r: &[Texel]) -> anyhow::Result<()> {
+    let mut bytes = Vec::with_capacity(r.len() * 17);
+    for (v, ok, var) in r {
         for c in v.to_array() {
             bytes.extend_from_slice(&c.to_le_bytes());
         }
         bytes.push(u8::from(*ok));
+        bytes.extend_from_slice(&var.to_le_bytes());
     }
     std::fs::write(path, bytes)?;
     Ok(())

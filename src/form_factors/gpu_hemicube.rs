@@ -126,73 +126,18 @@ impl GpuHemicubes {
         }
     }
 
-    /// Renders one atlas of hemicubes and reads its two targets back.
+    /// Renders one atlas of hemicubes, the five faces of each of `cams`
+    /// (`None`: a slot left empty), and reads its two targets back: each
+    /// pixel's item and barycentrics.
     fn render(&self, cams: &[Option<Cameras>]) -> Result<(Vec<u32>, Vec<[f32; 2]>)> {
         let t = self
             .targets
             .lock()
             .map_err(|_| anyhow!("GPU hemicube lock"))?;
-        let v = |x: glam::Vec3, w: f32| [x.x, x.y, x.z, w];
-        let mut faces = vec![GpuFace::zeroed(); 5 * cams.len()];
-        for (k, c) in cams.iter().enumerate() {
-            let Some(c) = c else { continue };
-            for (f, face) in c.faces.iter().enumerate() {
-                faces[5 * k + f] = GpuFace {
-                    right: v(face.right, if face.side { 1.0 } else { 0.0 }),
-                    up: v(face.up, 0.0),
-                    forward: v(face.forward, 0.0),
-                    eye: v(c.eye, 1.0),
-                };
-            }
-        }
-        self.queue
-            .write_buffer(&t.faces, 0, bytemuck::cast_slice(&faces));
+        self.upload_faces(&t, cams);
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        {
-            let item = t.item.create_view(&Default::default());
-            let bary = t.bary.create_view(&Default::default());
-            let color = |view| {
-                Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })
-            };
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("hemicubes"),
-                color_attachments: &[color(&item), color(&bary)],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &t.depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &t.bind, &[]);
-            for (k, c) in cams.iter().enumerate() {
-                if c.is_none() {
-                    continue;
-                }
-                for f in 0..5u32 {
-                    let [x, y, w, h] = self.viewport(k as u32, f);
-                    pass.set_viewport(x as f32, y as f32, w as f32, h as f32, 0.0, 1.0);
-                    pass.set_scissor_rect(x, y, w, h);
-                    let face = 5 * k as u32 + f;
-                    pass.draw(0..self.vertices, face..face + 1);
-                }
-            }
-        }
+        self.draw_faces(&t, &mut encoder, cams);
         // Only the atlas rows this batch used are read back.
         let used = (cams.len() as u32).div_ceil(self.cols) * self.n;
         let size = wgpu::Extent3d {
@@ -218,6 +163,88 @@ impl GpuHemicubes {
         if let Some(e) = pollster::block_on(scope.pop()) {
             bail!("GPU hemicubes: {:#}", anyhow::Error::new(e));
         }
+        self.read_back(&t, index, used)
+    }
+
+    /// Each camera's five face frames into `t.faces` (zeros for `None`).
+    fn upload_faces(&self, t: &Targets, cams: &[Option<Cameras>]) {
+        let v = |x: glam::Vec3, w: f32| [x.x, x.y, x.z, w];
+        let mut faces = vec![GpuFace::zeroed(); 5 * cams.len()];
+        for (k, c) in cams.iter().enumerate() {
+            let Some(c) = c else { continue };
+            for (f, face) in c.faces.iter().enumerate() {
+                faces[5 * k + f] = GpuFace {
+                    right: v(face.right, if face.side { 1.0 } else { 0.0 }),
+                    up: v(face.up, 0.0),
+                    forward: v(face.forward, 0.0),
+                    eye: v(c.eye, 1.0),
+                };
+            }
+        }
+        self.queue
+            .write_buffer(&t.faces, 0, bytemuck::cast_slice(&faces));
+    }
+
+    /// One render pass: every face of every camera in its viewport of the
+    /// atlas, depth-tested (reversed Z, cleared to 0).
+    fn draw_faces(
+        &self,
+        t: &Targets,
+        encoder: &mut wgpu::CommandEncoder,
+        cams: &[Option<Cameras>],
+    ) {
+        let item = t.item.create_view(&Default::default());
+        let bary = t.bary.create_view(&Default::default());
+        let color = |view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("hemicubes"),
+            color_attachments: &[color(&item), color(&bary)],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &t.depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(0.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &t.bind, &[]);
+        for (k, c) in cams.iter().enumerate() {
+            if c.is_none() {
+                continue;
+            }
+            for f in 0..5u32 {
+                let [x, y, w, h] = self.viewport(k as u32, f);
+                pass.set_viewport(x as f32, y as f32, w as f32, h as f32, 0.0, 1.0);
+                pass.set_scissor_rect(x, y, w, h);
+                let face = 5 * k as u32 + f;
+                pass.draw(0..self.vertices, face..face + 1);
+            }
+        }
+    }
+
+    /// Waits for submission `index` and reads the first `used` atlas rows
+    /// of items and barycentrics back.
+    fn read_back(
+        &self,
+        t: &Targets,
+        index: wgpu::SubmissionIndex,
+        used: u32,
+    ) -> Result<(Vec<u32>, Vec<[f32; 2]>)> {
         let (tx, rx) = std::sync::mpsc::channel();
         let bytes = |b: u32| (self.width * used * b) as u64;
         for (buffer, b) in [(&t.item_read, 4), (&t.bary_read, 8)] {

@@ -144,6 +144,7 @@ pub fn run(
             mixed,
             directional: None,
             ao: None,
+            variance: Vec::new(),
             rays,
             patch_light: Some(patch_light),
         });
@@ -758,6 +759,7 @@ fn gathered_light(
         direct: texel_direct,
         directional,
         ao: (!g.ao.is_empty()).then_some(g.ao),
+        variance: g.variance,
         rays: Rays::default(),
         mixed: Vec::new(),
         patch_light: None,

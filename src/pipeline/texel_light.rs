@@ -28,6 +28,12 @@ pub struct TexelLight {
     pub directional: Option<Vec<Directional>>,
     /// Ambient occlusion per texel (`--ao DISTANCE` with the final gather).
     pub ao: Option<Vec<f32>>,
+    /// The final gather's estimate of each texel's variance (luminance,
+    /// of the texel's mean before denoising; [`crate::gather::Gathered`]);
+    /// empty without a final gather. Σ a² var / (Σ a)² over an instance's
+    /// texels is the variance of its mean, which the denoiser does not
+    /// change (it conserves each chart's power).
+    pub variance: Vec<f32>,
     /// Rays cast, per purpose.
     pub rays: Rays,
     /// Radiosity's patch-level products (`None` for the references).

@@ -120,6 +120,7 @@ fn reference(values: Vec<Vec3>, valid: Vec<bool>, rays: u64) -> TexelLight {
         mixed: Vec::new(),
         directional: None,
         ao: None,
+        variance: Vec::new(),
         rays: Rays {
             gather: rays,
             ..Rays::default()

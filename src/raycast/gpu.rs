@@ -102,111 +102,9 @@ impl GpuRayCaster {
             bail!("no triangles");
         }
         let (adapter, device, queue) = crate::adapter::offscreen_device()?;
-        let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(
-            &super::obvhs_triangles(geometry, casters),
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
-        );
-        // The real depth (`Bvh2::max_depth` is only a stack-size hint).
-        let mut depth = 0usize;
-        let mut todo = vec![(0u32, 1usize)];
-        while let Some((i, d)) = todo.pop() {
-            depth = depth.max(d);
-            let n = &bvh.nodes[i as usize];
-            if n.prim_count == 0 {
-                todo.push((n.first_index, d + 1));
-                todo.push((n.first_index + 1, d + 1));
-            }
-        }
-        if depth > STACK {
-            bail!("BVH depth {depth} exceeds the GPU traversal stack ({STACK})");
-        }
-        let nodes: Vec<GpuNode> = bvh
-            .nodes
-            .iter()
-            .map(|n| GpuNode {
-                min: Vec3::from(n.aabb.min).to_array(),
-                prim_count: n.prim_count,
-                max: Vec3::from(n.aabb.max).to_array(),
-                first_index: n.first_index,
-            })
-            .collect();
-        let ids: Vec<u32> = match casters {
-            Some(c) => bvh
-                .primitive_indices
-                .iter()
-                .map(|&i| c[i as usize])
-                .collect(),
-            None => bvh.primitive_indices.clone(),
-        };
-        let gpu_tris: Vec<GpuTri> = ids
-            .iter()
-            .map(|&g| {
-                let p = geometry.p_ws[g as usize];
-                let e1 = p[0] - p[1];
-                let e2 = p[2] - p[0];
-                let n = e1.cross(e2);
-                let v = |x: Vec3| [x.x, x.y, x.z, 0.0];
-                GpuTri {
-                    v0: v(p[0]),
-                    e1: v(e1),
-                    e2: v(e2),
-                    n: v(n),
-                }
-            })
-            .collect();
-        // Validation errors (a driver without storage buffers, say) are
-        // captured and returned, not left to wgpu's panicking handler.
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("raycast.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
-        let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("raycast"),
-            entries: &[
-                storage(0, true),
-                storage(1, true),
-                storage(2, true),
-                storage(3, false),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 4,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-            ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("raycast"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("raycast"),
-            layout: Some(&pipeline_layout),
-            module: &shader,
-            entry_point: Some("cast_rays"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            bail!("the ray-casting shader does not compile here: {e}");
-        }
+        let (nodes, ids) = gpu_bvh(geometry, casters)?;
+        let gpu_tris = gpu_triangles(geometry, &ids);
+        let (pipeline, layout) = pipeline(&device)?;
         let nodes = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("bvh nodes"),
             contents: bytemuck::cast_slice(&nodes),
@@ -570,4 +468,131 @@ impl BatchCaster for GpuBatches<'_> {
         }
         Ok(())
     }
+}
+
+/// radbake's BVH (obvhs, over `casters` or every triangle) as the
+/// shader's flat node array, and each leaf slot's world triangle.
+///
+/// # Errors
+/// A BVH deeper than the shader's traversal stack.
+fn gpu_bvh(geometry: &Geometry, casters: Option<&[u32]>) -> Result<(Vec<GpuNode>, Vec<u32>)> {
+    let bvh = obvhs::bvh2::builder::build_bvh2_from_tris(
+        &super::obvhs_triangles(geometry, casters),
+        BvhBuildParams::medium_build(),
+        &mut Duration::default(),
+    );
+    // The real depth (`Bvh2::max_depth` is only a stack-size hint).
+    let mut depth = 0usize;
+    let mut todo = vec![(0u32, 1usize)];
+    while let Some((i, d)) = todo.pop() {
+        depth = depth.max(d);
+        let n = &bvh.nodes[i as usize];
+        if n.prim_count == 0 {
+            todo.push((n.first_index, d + 1));
+            todo.push((n.first_index + 1, d + 1));
+        }
+    }
+    if depth > STACK {
+        bail!("BVH depth {depth} exceeds the GPU traversal stack ({STACK})");
+    }
+    let nodes: Vec<GpuNode> = bvh
+        .nodes
+        .iter()
+        .map(|n| GpuNode {
+            min: Vec3::from(n.aabb.min).to_array(),
+            prim_count: n.prim_count,
+            max: Vec3::from(n.aabb.max).to_array(),
+            first_index: n.first_index,
+        })
+        .collect();
+    let ids: Vec<u32> = match casters {
+        Some(c) => bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| c[i as usize])
+            .collect(),
+        None => bvh.primitive_indices.clone(),
+    };
+    Ok((nodes, ids))
+}
+
+/// The triangles in the BVH's leaf order, as the shader's Möller–Trumbore
+/// test reads them (a vertex, two edges, the normal).
+fn gpu_triangles(geometry: &Geometry, ids: &[u32]) -> Vec<GpuTri> {
+    ids.iter()
+        .map(|&g| {
+            let p = geometry.p_ws[g as usize];
+            let e1 = p[0] - p[1];
+            let e2 = p[2] - p[0];
+            let n = e1.cross(e2);
+            let v = |x: Vec3| [x.x, x.y, x.z, 0.0];
+            GpuTri {
+                v0: v(p[0]),
+                e1: v(e1),
+                e2: v(e2),
+                n: v(n),
+            }
+        })
+        .collect()
+}
+
+/// The ray-casting compute pipeline and its bind group layout: nodes,
+/// triangles, rays (read), hits (written), the uniform ray count.
+///
+/// # Errors
+/// A shader or pipeline the driver rejects (validation errors captured).
+fn pipeline(device: &wgpu::Device) -> Result<(wgpu::ComputePipeline, wgpu::BindGroupLayout)> {
+    // Validation errors (a driver without storage buffers, say) are
+    // captured and returned, not left to wgpu's panicking handler.
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("raycast.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+    });
+    let storage = |binding, read_only| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    };
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("raycast"),
+        entries: &[
+            storage(0, true),
+            storage(1, true),
+            storage(2, true),
+            storage(3, false),
+            wgpu::BindGroupLayoutEntry {
+                binding: 4,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            },
+        ],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("raycast"),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("raycast"),
+        layout: Some(&pipeline_layout),
+        module: &shader,
+        entry_point: Some("cast_rays"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        bail!("the ray-casting shader does not compile here: {e}");
+    }
+    Ok((pipeline, layout))
 }
