@@ -199,45 +199,78 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
     if area.abs() < 1e-12 {
         return;
     }
-    let xs = [a.x, b.x, c.x];
-    let ys = [a.y, b.y, c.y];
-    let min_x = xs
-        .iter()
-        .copied()
-        .fold(f32::INFINITY, f32::min)
-        .floor()
-        .max(0.0) as i64;
-    let max_x = xs
-        .iter()
-        .copied()
-        .fold(f32::NEG_INFINITY, f32::max)
-        .ceil()
-        .min(n as f32) as i64;
-    let min_y = ys
-        .iter()
-        .copied()
-        .fold(f32::INFINITY, f32::min)
-        .floor()
-        .max(0.0) as i64;
-    let max_y = ys
-        .iter()
-        .copied()
-        .fold(f32::NEG_INFINITY, f32::max)
-        .ceil()
-        .min(rows as f32) as i64;
+    let [min_x, max_x, min_y, max_y] = pixel_bounds(v, n, rows);
     let inv_z = [1.0 / a.z, 1.0 / b.z, 1.0 / c.z];
-    let bary_z = [v[0].1 * inv_z[0], v[1].1 * inv_z[1], v[2].1 * inv_z[2]];
-    let inv_area = 1.0 / area;
-    let edges = [(b, c), (c, a), (a, b)];
+    let t = ScreenTriangle {
+        a,
+        b,
+        c,
+        inv_area: 1.0 / area,
+        inv_z,
+        bary_z: [v[0].1 * inv_z[0], v[1].1 * inv_z[1], v[2].1 * inv_z[2]],
+        tri,
+    };
     for y in min_y..max_y {
-        // The row's span: each edge function is linear in x, so the
-        // pixels inside lie in one interval, found per edge and widened
-        // by a pixel; the exact test below decides each pixel in it.
         let py = y as f32 + 0.5;
+        let (x0, x1) = t.row_span(py, min_x, max_x);
+        let row = &mut buf[(y as u32 * n) as usize..][..n as usize];
+        t.raster_row(row, py, x0, x1);
+    }
+}
+
+/// The pixels a triangle's screen bounding box covers, clamped to the face:
+/// `[min_x, max_x, min_y, max_y]` (max exclusive).
+#[inline]
+fn pixel_bounds(v: &[(Vec3, Vec2); 3], n: u32, rows: u32) -> [i64; 4] {
+    let xs = [v[0].0.x, v[1].0.x, v[2].0.x];
+    let ys = [v[0].0.y, v[1].0.y, v[2].0.y];
+    let least = |z: [f32; 3]| {
+        z.iter()
+            .copied()
+            .fold(f32::INFINITY, f32::min)
+            .floor()
+            .max(0.0)
+    };
+    let most = |z: [f32; 3], cap: u32| {
+        (z.iter().copied())
+            .fold(f32::NEG_INFINITY, f32::max)
+            .ceil()
+            .min(cap as f32)
+    };
+    [
+        least(xs) as i64,
+        most(xs, n) as i64,
+        least(ys) as i64,
+        most(ys, rows) as i64,
+    ]
+}
+
+/// One screen triangle's constants for [`raster_triangle`]: its vertices
+/// (x, y in pixels, z the depth), 1 / its doubled signed area, 1/z and
+/// barycentrics / z at each vertex (perspective-correct interpolation),
+/// and its id.
+struct ScreenTriangle {
+    a: Vec3,
+    b: Vec3,
+    c: Vec3,
+    inv_area: f32,
+    inv_z: [f32; 3],
+    bary_z: [Vec2; 3],
+    tri: u32,
+}
+
+impl ScreenTriangle {
+    /// Row `py`'s span of pixels that may be inside: each edge function is
+    /// linear in x, so the pixels inside lie in one interval, found per edge
+    /// and widened by a pixel; the exact test of [`ScreenTriangle::raster_row`]
+    /// decides each pixel in it.
+    #[inline]
+    fn row_span(&self, py: f32, min_x: i64, max_x: i64) -> (i64, i64) {
+        let (a, b, c) = (self.a, self.b, self.c);
         let (mut lo, mut hi) = (min_x as f32, max_x as f32);
-        for (ea, eb) in edges {
-            let slope = -(eb.y - ea.y) * inv_area;
-            let at0 = ((eb.x - ea.x) * (py - ea.y) + (eb.y - ea.y) * ea.x) * inv_area;
+        for (ea, eb) in [(b, c), (c, a), (a, b)] {
+            let slope = -(eb.y - ea.y) * self.inv_area;
+            let at0 = ((eb.x - ea.x) * (py - ea.y) + (eb.y - ea.y) * ea.x) * self.inv_area;
             if slope > 0.0 {
                 lo = lo.max(-at0 / slope - 1.5);
             } else if slope < 0.0 {
@@ -246,13 +279,20 @@ fn raster_triangle(v: &[(Vec3, Vec2); 3], tri: u32, n: u32, rows: u32, buf: &mut
                 hi = lo;
             }
         }
-        let (x0, x1) = ((lo.max(min_x as f32)) as i64, (hi.min(max_x as f32)) as i64);
-        let row = &mut buf[(y as u32 * n) as usize..][..n as usize];
-        // Four pixels at a time: their weights, coverage and depths in the
-        // lanes of `f32x4`, each lane the one-pixel arithmetic (edge
-        // functions, then 1 − w0 − w1, then 1/z) in that order, so the same
-        // bits; lanes past the span count as outside. Then the covered
-        // ones are tested and written one by one.
+        ((lo.max(min_x as f32)) as i64, (hi.min(max_x as f32)) as i64)
+    }
+
+    /// Pixels `x0..x1` of the row at `py`, depth-tested and written.
+    ///
+    /// Four pixels at a time: their weights, coverage and depths in the
+    /// lanes of `f32x4`, each lane the one-pixel arithmetic (edge
+    /// functions, then 1 − w0 − w1, then 1/z) in that order, so the same
+    /// bits; lanes past the span count as outside. Then the covered ones
+    /// are tested and written one by one.
+    #[inline]
+    fn raster_row(&self, row: &mut [Pixel], py: f32, x0: i64, x1: i64) {
+        let (a, b, c) = (self.a, self.b, self.c);
+        let (inv_area, inv_z, bary_z, tri) = (self.inv_area, self.inv_z, self.bary_z, self.tri);
         let (k0, k1) = ((c.x - b.x) * (py - b.y), (a.x - c.x) * (py - c.y));
         let zero = f32x4::splat(0.0);
         // Pixel centres x + 0.5 … x + 3.5: exact sums of small integers
