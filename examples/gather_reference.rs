@@ -45,16 +45,63 @@ use glam::Vec3;
 use radbake::{BakeConfig, Silent};
 use std::time::Instant;
 
+/// The command line: the scene, the reference's settings, what to print.
+struct Args {
+    path: String,
+    cache: std::path::PathBuf,
+    ref_rays: u32,
+    min_area: f64,
+    ref_seed: Option<u64>,
+    same: bool,
+    detail: bool,
+    ref_only: bool,
+    config: BakeConfig,
+}
+
 fn main() -> anyhow::Result<()> {
+    let args = parse()?;
+    let scene = radbake::scene::load(std::path::Path::new(&args.path), &Default::default())?;
+    let reference = match read(&args.cache) {
+        Some(r) => r,
+        None => bake_reference(&scene, &args)?,
+    };
+    if args.ref_only {
+        return Ok(());
+    }
+    let t = Instant::now();
+    let b = radbake::bake(&scene, &args.config, &Silent)?;
+    println!(
+        "bake: {:.1} s, {} gather rays",
+        t.elapsed().as_secs_f64(),
+        b.transport.rays.gather
+    );
+    anyhow::ensure!(
+        reference.len() == b.texels.len(),
+        "the reference has {} texels, the bake {} (other settings?)",
+        reference.len(),
+        b.texels.len()
+    );
+    let valid: Vec<usize> = (0..reference.len())
+        .filter(|&i| b.transport.valid[i] && reference[i].1)
+        .collect();
+    texel_errors(&b, &reference, &valid);
+    instance_means(&scene, &b, &reference, &valid, &args);
+    Ok(())
+}
+
+/// Luminance (the mean of the channels, as the gather's variance).
+fn lum(v: Vec3) -> f64 {
+    v.element_sum() as f64 / 3.0
+}
+
+fn parse() -> anyhow::Result<Args> {
     let mut args = std::env::args().skip(1);
     let path = args.next().ok_or_else(|| {
         anyhow::anyhow!("usage: gather_reference SCENE cache=FILE [ref_rays=N] [KEY=VALUE ...]")
     })?;
     let (mut cache, mut ref_rays, mut min_area) = (None, 4096u32, 10.0f64);
     let mut ref_seed = None;
-    let mut same = false;
-    let mut detail = false;
-    let mut ref_only = false;
+    let (mut same, mut detail, mut ref_only) = (false, false, false);
     let mut toml = String::new();
     for a in args {
         match a.split_once('=') {
@@ -68,72 +115,65 @@ fn main() -> anyhow::Result<()> {
             _ => toml += &(a + "\n"),
         }
     }
-    let cache = cache.ok_or_else(|| anyhow::anyhow!("cache=FILE is required"))?;
-    let config = BakeConfig::from_toml_over(&BakeConfig::default(), &toml)?;
-    let scene = radbake::scene::load(std::path::Path::new(&path), &Default::default())?;
-    let reference = match read(&cache) {
-        Some(r) => r,
-        None => {
-            let t = Instant::now();
-            let seed = ref_seed.unwrap_or(config.seed);
-            let reference = if same {
-                BakeConfig {
-                    seed,
-                    ..config.clone()
-                }
-            } else {
-                BakeConfig {
-                    final_gather: ref_rays,
-                    gather_threshold: 0.0,
-                    denoise: false,
-                    seed,
-                    ..config.clone()
-                }
-            };
-            let b = radbake::bake(&scene, &reference, &Silent)?;
-            println!(
-                "reference ({}): {:.1} s",
-                if same {
-                    format!("the bake's settings, seed {seed}")
-                } else {
-                    format!("{ref_rays} rays")
-                },
-                t.elapsed().as_secs_f64()
-            );
-            let r: Vec<Texel> = (b.maps.lightmaps.texel_values.iter())
-                .zip(&b.transport.valid)
-                .enumerate()
-                .map(|(i, (&v, &ok))| (v, ok, variance(&b.transport.variance, i)))
-                .collect();
-            write(&cache, &r)?;
-            r
+    Ok(Args {
+        path,
+        cache: cache.ok_or_else(|| anyhow::anyhow!("cache=FILE is required"))?,
+        ref_rays,
+        min_area,
+        ref_seed,
+        same,
+        detail,
+        ref_only,
+        config: BakeConfig::from_toml_over(&BakeConfig::default(), &toml)?,
+    })
+}
+
+/// Bakes the reference and caches it in `args.cache`.
+fn bake_reference(scene: &radbake::scene::Scene, args: &Args) -> anyhow::Result<Vec<Texel>> {
+    let (config, ref_rays, same) = (&args.config, args.ref_rays, args.same);
+    let t = Instant::now();
+    let seed = args.ref_seed.unwrap_or(config.seed);
+    let reference = if same {
+        BakeConfig {
+            seed,
+            ..config.clone()
+        }
+    } else {
+        BakeConfig {
+            final_gather: ref_rays,
+            gather_threshold: 0.0,
+            denoise: false,
+            seed,
+            ..config.clone()
         }
     };
-    if ref_only {
-        return Ok(());
-    }
-    let t = Instant::now();
-    let b = radbake::bake(&scene, &config, &Silent)?;
+    let b = radbake::bake(scene, &reference, &Silent)?;
     println!(
-        "bake: {:.1} s, {} gather rays",
-        t.elapsed().as_secs_f64(),
-        b.transport.rays.gather
+        "reference ({}): {:.1} s",
+        if same {
+            format!("the bake's settings, seed {seed}")
+        } else {
+            format!("{ref_rays} rays")
+        },
+        t.elapsed().as_secs_f64()
     );
-    anyhow::ensure!(
-        reference.len() == b.texels.len(),
-        "the reference has {} texels, the bake {} (other settings?)",
-        reference.len(),
-        b.texels.len()
-    );
-    let lum = |v: Vec3| v.element_sum() as f64 / 3.0;
-    let values = &b.maps.lightmaps.texel_values;
-    let valid: Vec<usize> = (0..values.len())
-        .filter(|&i| b.transport.valid[i] && reference[i].1)
+    let r: Vec<Texel> = (b.maps.lightmaps.texel_values.iter())
+        .zip(&b.transport.valid)
+        .enumerate()
+        .map(|(i, (&v, &ok))| (v, ok, variance(&b.transport.variance, i)))
         .collect();
+    write(&args.cache, &r)?;
+    Ok(r)
+}
+
+/// RMSE against the reference (all texels, shadowed ones) and the
+/// relative error's percentiles, over the `valid` texels.
+fn texel_errors(b: &radbake::Bake, reference: &[Texel], valid: &[usize]) {
+    let values = &b.maps.lightmaps.texel_values;
     let mean = valid.iter().map(|&i| lum(reference[i].0)).sum::<f64>() / valid.len() as f64;
     let rmse = |keep: &dyn Fn(f64) -> bool| {
         let (mut se, mut n, mut sum) = (0.0f64, 0usize, 0.0f64);
-        for &i in &valid {
+        for &i in valid {
             let r = lum(reference[i].0);
             if keep(r) {
                 se += ((values[i] - reference[i].0).length_squared() / 3.0) as f64;
@@ -163,11 +203,24 @@ fn main() -> anyhow::Result<()> {
         pct(0.5),
         pct(0.9)
     );
+}
+
+/// Every instance's area-weighted mean against the reference's, with its
+/// standard error (instances of at least `min_area` m²).
+fn instance_means(
+    scene: &radbake::scene::Scene,
+    b: &radbake::Bake,
+    reference: &[Texel],
+    valid: &[usize],
+    args: &Args,
+) {
+    let (min_area, detail) = (args.min_area, args.detail);
+    let values = &b.maps.lightmaps.texel_values;
     // Instance means over the texels valid in both (area-weighted).
     let instances = scene.instances.len();
     // Per instance: Σ a·value, Σ a·reference, Σ a, Σ a²·(var + var_ref).
     let mut sums = vec![[0.0f64; 4]; instances];
-    for &i in &valid {
+    for &i in valid {
         let k = b.texels.instance[i] as usize;
         let a = b.texels.area[i] as f64;
         sums[k][0] += a * lum(values[i]);
@@ -266,7 +319,6 @@ fn main() -> anyhow::Result<()> {
         100.0 * worst_z.1,
         (z_sq / counted.max(1) as f64).sqrt()
     );
-    Ok(())
 }
 
 /// A reference texel: its value, validity and the gather's variance of it.
