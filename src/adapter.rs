@@ -94,3 +94,16 @@ pub fn render_target(
         view_formats: &[],
     })
 }
+
+/// A reversed-Z depth attachment (Reed 2015): cleared to 0, the far
+/// plane, so nearer is greater; not kept after the pass.
+pub fn reversed_z_depth(view: &wgpu::TextureView) -> wgpu::RenderPassDepthStencilAttachment<'_> {
+    wgpu::RenderPassDepthStencilAttachment {
+        view,
+        depth_ops: Some(wgpu::Operations {
+            load: wgpu::LoadOp::Clear(0.0),
+            store: wgpu::StoreOp::Discard,
+        }),
+        stencil_ops: None,
+    }
+}

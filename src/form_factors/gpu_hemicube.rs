@@ -209,14 +209,7 @@ impl GpuHemicubes {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("hemicubes"),
             color_attachments: &[color(&item), color(&bary)],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &t.depth,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(0.0),
-                    store: wgpu::StoreOp::Discard,
-                }),
-                stencil_ops: None,
-            }),
+            depth_stencil_attachment: Some(crate::adapter::reversed_z_depth(&t.depth)),
             timestamp_writes: None,
             occlusion_query_set: None,
             multiview_mask: None,
