@@ -72,28 +72,15 @@ fn main() -> anyhow::Result<()> {
     };
     let geometry = common::world_geometry(&scene);
     let t = Instant::now();
-    use obvhs::BvhBuildParams as P;
-    let params = match args.bvh.as_str() {
-        "fastest" => P::fastest_build(),
-        "very-fast" => P::very_fast_build(),
-        "fast" => P::fast_build(),
-        "medium" => P::medium_build(),
-        "slow" => P::slow_build(),
-        "very-slow" => P::very_slow_build(),
-        other => anyhow::bail!("unknown --bvh preset `{other}`"),
-    };
-    use radbake::raycast::BvhWidth;
-    let width = match args.width.as_str() {
-        "auto" => BvhWidth::Auto,
-        "4" => BvhWidth::Four,
-        "8" => BvhWidth::Eight,
-        other => anyhow::bail!("unknown --width `{other}` (auto, 4 or 8)"),
-    };
-    let caster = RayCaster::with_width(&scene, &geometry, params, width);
+    let caster = RayCaster::with_width(
+        &scene,
+        &geometry,
+        bvh_params(&args.bvh)?,
+        width(&args.width)?,
+    );
     let build = t.elapsed().as_secs_f64();
     let closest = common::surface_rays(&geometry, args.rays, common::SEED);
     let shadow = common::shadow_rays(&geometry, args.rays, common::SEED);
-
     // The answers, then the timings.
     let hit_t: Vec<f32> = (0..closest.len())
         .into_par_iter()
@@ -107,8 +94,53 @@ fn main() -> anyhow::Result<()> {
         .into_par_iter()
         .map(|i| u8::from(!caster.unoccluded(shadow.origin[i], shadow.dir[i], shadow.tmax[i])))
         .collect();
-    let threads = rayon::current_num_threads();
-    let n = args.rays;
+    let rates = rates(&caster, &closest, &shadow, args.repeat);
+    let bytes = file_bytes(&geometry, &closest, &shadow, (&hit_t, &occluded), rates);
+    radbake::output::write_bytes_atomic(&args.out, &bytes)?;
+    report(
+        &args,
+        &caster,
+        (geometry.len(), build),
+        (&hit_t, &occluded),
+        rates,
+    );
+    Ok(())
+}
+
+/// obvhs's build preset by name.
+fn bvh_params(name: &str) -> anyhow::Result<obvhs::BvhBuildParams> {
+    use obvhs::BvhBuildParams as P;
+    Ok(match name {
+        "fastest" => P::fastest_build(),
+        "very-fast" => P::very_fast_build(),
+        "fast" => P::fast_build(),
+        "medium" => P::medium_build(),
+        "slow" => P::slow_build(),
+        "very-slow" => P::very_slow_build(),
+        other => anyhow::bail!("unknown --bvh preset `{other}`"),
+    })
+}
+
+/// The BVH width by name.
+fn width(name: &str) -> anyhow::Result<radbake::raycast::BvhWidth> {
+    use radbake::raycast::BvhWidth;
+    Ok(match name {
+        "auto" => BvhWidth::Auto,
+        "4" => BvhWidth::Four,
+        "8" => BvhWidth::Eight,
+        other => anyhow::bail!("unknown --width `{other}` (auto, 4 or 8)"),
+    })
+}
+
+/// Rays/s: closest-hit on 1 and on all threads, occlusion on 1 and on all
+/// threads (best of `repeat`).
+fn rates(
+    caster: &RayCaster,
+    closest: &common::Rays,
+    shadow: &common::Rays,
+    repeat: u32,
+) -> [f64; 4] {
+    let n = closest.len();
     let sink = |v: u64| {
         std::hint::black_box(v);
     };
@@ -119,8 +151,8 @@ fn main() -> anyhow::Result<()> {
     };
     let occluded_one =
         |i: usize| caster.unoccluded(shadow.origin[i], shadow.dir[i], shadow.tmax[i]) as u64;
-    let c1 = rate(args.repeat, n, || sink((0..n).map(closest_one).sum()));
-    let cn = rate(args.repeat, n, || {
+    let c1 = rate(repeat, n, || sink((0..n).map(closest_one).sum()));
+    let cn = rate(repeat, n, || {
         sink(
             (0..n)
                 .into_par_iter()
@@ -129,8 +161,8 @@ fn main() -> anyhow::Result<()> {
                 .sum(),
         )
     });
-    let o1 = rate(args.repeat, n, || sink((0..n).map(occluded_one).sum()));
-    let on = rate(args.repeat, n, || {
+    let o1 = rate(repeat, n, || sink((0..n).map(occluded_one).sum()));
+    let on = rate(repeat, n, || {
         sink(
             (0..n)
                 .into_par_iter()
@@ -140,13 +172,24 @@ fn main() -> anyhow::Result<()> {
         )
     });
 
-    // The file.
+    [c1, cn, o1, on]
+}
+
+/// The file's bytes (layout in the module's documentation).
+fn file_bytes(
+    geometry: &radbake::geometry::Geometry,
+    closest: &common::Rays,
+    shadow: &common::Rays,
+    (hit_t, occluded): (&[f32], &[u8]),
+    rates: [f64; 4],
+) -> Vec<u8> {
+    let threads = rayon::current_num_threads();
     let mut bytes: Vec<u8> = Vec::new();
     bytes.extend_from_slice(b"RBRAYS01");
     for v in [geometry.len(), closest.len(), shadow.len(), threads] {
         bytes.extend_from_slice(&(v as u32).to_le_bytes());
     }
-    for r in [c1, cn, o1, on] {
+    for r in rates {
         bytes.extend_from_slice(&r.to_le_bytes());
     }
     let f32s = |bytes: &mut Vec<u8>, v: &[f32]| {
@@ -159,23 +202,33 @@ fn main() -> anyhow::Result<()> {
             f32s(&mut bytes, &c.to_array());
         }
     }
-    for r in [&closest, &shadow] {
+    for r in [closest, shadow] {
         for i in 0..r.len() {
             f32s(&mut bytes, &r.origin[i].to_array());
             f32s(&mut bytes, &r.dir[i].to_array());
             f32s(&mut bytes, &[r.tmax[i]]);
         }
     }
-    f32s(&mut bytes, &hit_t);
-    bytes.extend_from_slice(&occluded);
-    radbake::output::write_bytes_atomic(&args.out, &bytes)?;
+    f32s(&mut bytes, hit_t);
+    bytes.extend_from_slice(occluded);
+    bytes
+}
 
+/// What was written, the BVH's shape and the rates.
+fn report(
+    args: &Args,
+    caster: &RayCaster,
+    (triangles, build): (usize, f64),
+    (hit_t, occluded): (&[f32], &[u8]),
+    [c1, cn, o1, on]: [f64; 4],
+) {
+    let (n, threads) = (args.rays, rayon::current_num_threads());
     let hits = hit_t.iter().filter(|t| t.is_finite()).count();
     let blocked = occluded.iter().filter(|o| **o == 1).count();
     println!(
         "{}: {} triangles ({} BVH built in {:.3} s), {} closest-hit rays ({} hit), {} occlusion rays ({} occluded)",
         args.out.display(),
-        geometry.len(),
+        triangles,
         args.bvh,
         build,
         n,
@@ -206,5 +259,4 @@ fn main() -> anyhow::Result<()> {
         o1 / 1e6,
         on / 1e6
     );
-    Ok(())
 }
