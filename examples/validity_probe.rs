@@ -18,7 +18,7 @@
 //!
 //!     cargo run --release --example validity_probe -- Sponza.lit.gltf texels_per_meter=4 near=0.5
 
-use radbake::form_factors::raycast::Landing;
+use radbake::form_factors::raycast::{Landing, Surfaces};
 use radbake::raycast::RayCaster;
 use radbake::sampling::{cosine_hemisphere, offset_ray_origin, stratified, Stream};
 use radbake::{BakeConfig, Silent};
@@ -41,7 +41,6 @@ fn main() -> anyhow::Result<()> {
     let bake = radbake::bake(&scene, &config, &Silent)?;
     let rays = RayCaster::new(&scene, &bake.geometry);
     let s = bake.surfaces(&rays);
-    const N: u32 = 64;
     // Per instance: (invalid area, near, far, mixed, none) areas.
     let mut per = vec![[0.0f64; 5]; scene.instances.len()];
     let mut dists: Vec<f32> = Vec::new();
@@ -55,22 +54,7 @@ fn main() -> anyhow::Result<()> {
             continue;
         }
         invalid += 1;
-        let sampler = s.texel_sampler(t as u32);
-        let mut rng = Stream::new(99, 77, t as u64);
-        let (mut n_near, mut n_far) = (0u32, 0u32);
-        for k in 0..N {
-            let (p, ng) = sampler.sample(stratified(k, N, rng.next_vec2()));
-            let dir = sampler.to_world(cosine_hemisphere(rng.next_vec2()));
-            let o = offset_ray_origin(p, ng);
-            if let (Landing::BackFace, Some(h)) = s.trace(o, dir) {
-                dists.push(h.t);
-                if h.t <= near {
-                    n_near += 1;
-                } else {
-                    n_far += 1;
-                }
-            }
-        }
+        let (n_near, n_far) = back_faces(&s, t, near, &mut dists);
         let a = bake.texels.area[t] as f64;
         let back = n_near + n_far;
         let e = if back == N {
@@ -113,22 +97,7 @@ fn main() -> anyhow::Result<()> {
             100.0 * e[2] / sum
         );
     }
-    dists.sort_by(f32::total_cmp);
-    let q = |f: f64| {
-        dists
-            .get(((dists.len() as f64 - 1.0) * f) as usize)
-            .copied()
-            .unwrap_or(0.0)
-    };
-    println!(
-        "back-face hit distance (m): p10 {:.3}, p25 {:.3}, median {:.3}, p75 {:.3}, p90 {:.3} over {} hits",
-        q(0.1),
-        q(0.25),
-        q(0.5),
-        q(0.75),
-        q(0.9),
-        dists.len()
-    );
+    print_distances(&mut dists);
     let mut order: Vec<usize> = (0..per.len()).collect();
     order.sort_by(|&a, &b| per[b][0].total_cmp(&per[a][0]));
     println!("instance: invalid m² (near / far / mixed / none %)");
@@ -148,4 +117,50 @@ fn main() -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// Rays cast from each invalid texel.
+const N: u32 = 64;
+
+/// Texel `t`'s [`N`] cosine rays from points over it: how many meet a back
+/// face within `near` metres and how many beyond; each such hit's distance
+/// is added to `dists`.
+fn back_faces(s: &Surfaces, t: usize, near: f32, dists: &mut Vec<f32>) -> (u32, u32) {
+    let sampler = s.texel_sampler(t as u32);
+    let mut rng = Stream::new(99, 77, t as u64);
+    let (mut n_near, mut n_far) = (0u32, 0u32);
+    for k in 0..N {
+        let (p, ng) = sampler.sample(stratified(k, N, rng.next_vec2()));
+        let dir = sampler.to_world(cosine_hemisphere(rng.next_vec2()));
+        let o = offset_ray_origin(p, ng);
+        if let (Landing::BackFace, Some(h)) = s.trace(o, dir) {
+            dists.push(h.t);
+            if h.t <= near {
+                n_near += 1;
+            } else {
+                n_far += 1;
+            }
+        }
+    }
+    (n_near, n_far)
+}
+
+/// The back-face hits' distance percentiles.
+fn print_distances(dists: &mut [f32]) {
+    dists.sort_by(f32::total_cmp);
+    let q = |f: f64| {
+        dists
+            .get(((dists.len() as f64 - 1.0) * f) as usize)
+            .copied()
+            .unwrap_or(0.0)
+    };
+    println!(
+        "back-face hit distance (m): p10 {:.3}, p25 {:.3}, median {:.3}, p75 {:.3}, p90 {:.3} over {} hits",
+        q(0.1),
+        q(0.25),
+        q(0.5),
+        q(0.75),
+        q(0.9),
+        dists.len()
+    );
 }
