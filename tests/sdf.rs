@@ -554,33 +554,7 @@ fn field_over_the_probe_volumes() {
     assert!(top.cmplt(hi + Vec3::splat(2.0 * voxel)).all(), "{top}");
     assert!(part.grid.len() * 10 < whole.grid.len());
 
-    // Voxel by voxel: the scene's grid's voxel at the same centre.
-    let shift = (gr.origin - whole.grid.origin) / voxel;
-    assert!(
-        (shift - shift.round()).abs().max_element() < 1e-3,
-        "{shift}"
-    );
-    let [sx, sy, sz] = shift.round().to_array().map(|v| v as usize);
-    let [wx, wy, _] = whole.grid.dims.map(|d| d as usize);
-    let (mut worst, mut inside, mut to_wall) = (0.0f32, 0, 0);
-    for i in 0..gr.len() {
-        let [x, y, z] = gr.xyz(i).map(|v| v as usize);
-        let j = (x + sx) + wx * ((y + sy) + wy * (z + sz));
-        assert!((gr.centre(i) - whole.grid.centre(j)).length() < 1e-4);
-        let (a, b) = (part.distance[i], whole.distance[j]);
-        worst = worst.max((a - b).abs());
-        inside += (a < 0.0) as u32;
-        // Nearer the wall (outside the box) than the box or the floor.
-        let c = gr.centre(i);
-        to_wall += ((a - (1.6 - c.x)).abs() < 1e-4 && 1.6 - c.x < c.x - 1.0) as u32;
-    }
-    // At random points, trilinear.
-    let mut rng = radbake::sampling::Stream::new(3, 5, 0);
-    for _ in 0..1000 {
-        let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-        let p = lo + (hi - lo) * u;
-        worst = worst.max((part.sample(p) - whole.sample(p)).abs());
-    }
+    let (worst, inside, to_wall) = against_the_whole(&part, &whole, (lo, hi));
     eprintln!(
         "{:?} voxels over the volume ({} over the scene); worst difference {worst:.2e} m; {inside} inside the box, {to_wall} nearest the wall",
         gr.dims,
@@ -611,8 +585,48 @@ fn field_over_the_probe_volumes() {
         json["sdf"]["origin"],
         serde_json::json!(gr.origin.to_array())
     );
+}
 
-    // No probe volume: errors naming the option.
+/// `part`, a field over `bounds`, against `whole`, the scene's, voxel by
+/// voxel (the same centres) and at 1,000 random points (trilinear): the
+/// largest difference, the voxels inside the box, and those nearest the
+/// wall (outside the box, nearer the wall than the box or the floor).
+fn against_the_whole(part: &sdf::Sdf, whole: &sdf::Sdf, (lo, hi): (Vec3, Vec3)) -> (f32, u32, u32) {
+    let (gr, voxel) = (&part.grid, part.grid.voxel);
+    let shift = (gr.origin - whole.grid.origin) / voxel;
+    assert!(
+        (shift - shift.round()).abs().max_element() < 1e-3,
+        "{shift}"
+    );
+    let [sx, sy, sz] = shift.round().to_array().map(|v| v as usize);
+    let [wx, wy, _] = whole.grid.dims.map(|d| d as usize);
+    let (mut worst, mut inside, mut to_wall) = (0.0f32, 0, 0);
+    for i in 0..gr.len() {
+        let [x, y, z] = gr.xyz(i).map(|v| v as usize);
+        let j = (x + sx) + wx * ((y + sy) + wy * (z + sz));
+        assert!((gr.centre(i) - whole.grid.centre(j)).length() < 1e-4);
+        let (a, b) = (part.distance[i], whole.distance[j]);
+        worst = worst.max((a - b).abs());
+        inside += (a < 0.0) as u32;
+        // Nearer the wall (outside the box) than the box or the floor.
+        let c = gr.centre(i);
+        to_wall += ((a - (1.6 - c.x)).abs() < 1e-4 && 1.6 - c.x < c.x - 1.0) as u32;
+    }
+    // At random points, trilinear.
+    let mut rng = radbake::sampling::Stream::new(3, 5, 0);
+    for _ in 0..1000 {
+        let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let p = lo + (hi - lo) * u;
+        worst = worst.max((part.sample(p) - whole.sample(p)).abs());
+    }
+    (worst, inside, to_wall)
+}
+
+/// `--bounds probe-volumes` (and the bake's `--sdf-bounds`) on a scene
+/// without a probe volume: a one-line error naming the option.
+#[test]
+fn sdf_bounds_without_probe_volumes_is_an_error() {
+    let out = temp_dir("sdf-volume-none-out").join("field.ktx2");
     let (p, i) = sphere(1.0, 8, 16, false);
     let bare = mesh_scene("sdf-volume-none", &p, &i);
     let run = |args: &[&str]| {
