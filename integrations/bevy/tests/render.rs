@@ -166,7 +166,32 @@ fn run_bevy(dir: &Path, render: bool) -> BevyRun {
         ready_at.is_some(),
         "the bake was not applied within 3000 frames"
     );
-    let world = app.world_mut();
+    let (applied, lightmaps, point_lights) = what_was_applied(app.world_mut());
+    let pixels = captured
+        .0
+        .lock()
+        .unwrap()
+        .take()
+        .map(|bytes| rgba16f(&bytes));
+    BevyRun {
+        point_lights,
+        pixels,
+        applied,
+        lightmaps,
+    }
+}
+
+/// What the plugin left in `world`: its `RadbakeApplied`, each mesh
+/// entity's node name and lightmap rectangle, and each point light's name
+/// and `affects_lightmapped_mesh_diffuse`.
+#[allow(clippy::type_complexity)]
+fn what_was_applied(
+    world: &mut World,
+) -> (
+    RadbakeApplied,
+    Vec<(String, Option<Rect>)>,
+    Vec<(String, bool)>,
+) {
     let applied = world
         .query::<&RadbakeApplied>()
         .iter(world)
@@ -198,22 +223,19 @@ fn run_bevy(dir: &Path, render: bool) -> BevyRun {
             )
         })
         .collect();
-    let pixels = captured.0.lock().unwrap().take().map(|bytes| {
-        assert_eq!(bytes.len(), (SIZE * SIZE * 8) as usize, "readback size");
-        bytes
-            .chunks_exact(8)
-            .map(|p| {
-                let c = |k: usize| half::f16::from_le_bytes([p[2 * k], p[2 * k + 1]]).to_f32();
-                [c(0), c(1), c(2), c(3)]
-            })
-            .collect()
-    });
-    BevyRun {
-        point_lights,
-        pixels,
-        applied,
-        lightmaps,
-    }
+    (applied, lightmaps, point_lights)
+}
+
+/// A readback of the `Rgba16Float` target as linear RGBA, row-major.
+fn rgba16f(bytes: &[u8]) -> Vec<[f32; 4]> {
+    assert_eq!(bytes.len(), (SIZE * SIZE * 8) as usize, "readback size");
+    bytes
+        .chunks_exact(8)
+        .map(|p| {
+            let c = |k: usize| half::f16::from_le_bytes([p[2 * k], p[2 * k + 1]]).to_f32();
+            [c(0), c(1), c(2), c(3)]
+        })
+        .collect()
 }
 
 /// Once the bake is applied: a camera at the first glTF camera's place,
