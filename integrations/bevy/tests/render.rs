@@ -181,17 +181,18 @@ fn run_bevy(dir: &Path, render: bool) -> BevyRun {
     }
 }
 
-/// What the plugin left in `world`: its `RadbakeApplied`, each mesh
-/// entity's node name and lightmap rectangle, and each point light's name
-/// and `affects_lightmapped_mesh_diffuse`.
-#[allow(clippy::type_complexity)]
-fn what_was_applied(
-    world: &mut World,
-) -> (
+/// The plugin's `RadbakeApplied`, the mesh entities' lightmaps and the
+/// point lights, as [`BevyRun`] holds them.
+type Applied = (
     RadbakeApplied,
     Vec<(String, Option<Rect>)>,
     Vec<(String, bool)>,
-) {
+);
+
+/// What the plugin left in `world`: its `RadbakeApplied`, each mesh
+/// entity's node name and lightmap rectangle, and each point light's name
+/// and `affects_lightmapped_mesh_diffuse`.
+fn what_was_applied(world: &mut World) -> Applied {
     let applied = world
         .query::<&RadbakeApplied>()
         .iter(world)
