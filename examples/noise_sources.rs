@@ -13,6 +13,8 @@
 //!
 //! KEY=VALUE pairs are settings as in a `--config` TOML file.
 
+mod common;
+
 use glam::{Vec2, Vec3};
 use radbake::form_factors::raycast::Landing;
 use radbake::{BakeConfig, Silent};
@@ -28,13 +30,7 @@ struct Noisy {
 }
 
 fn main() -> anyhow::Result<()> {
-    let mut args = std::env::args().skip(1);
-    let path = args
-        .next()
-        .ok_or_else(|| anyhow::anyhow!("usage: noise_sources SCENE [KEY=VALUE ...]"))?;
-    let toml: String = args.map(|a| a + "\n").collect();
-    let config = BakeConfig::from_toml_over(&BakeConfig::default(), &toml)?;
-    let scene = radbake::scene::load(std::path::Path::new(&path), &Default::default())?;
+    let (scene, config) = common::scene_and_settings("noise_sources", "")?;
     let mut bakes = Vec::new();
     for seed in [config.seed, config.seed.wrapping_add(1)] {
         let c = BakeConfig {

@@ -9,18 +9,17 @@
 //! KEY=VALUE pairs are settings as in a `--config` TOML file, e.g.
 //! `texels_per_meter=4 'sky=[0.4,0.5,0.7]'`.
 
-use radbake::config::BakeConfig;
+mod common;
+
 use radbake::output::png8::relative_step;
 use radbake::progress::Silent;
 
 fn main() -> anyhow::Result<()> {
-    let mut args = std::env::args().skip(1);
-    let path = args
-        .next()
-        .ok_or_else(|| anyhow::anyhow!("usage: quantisation SCENE [KEY=VALUE ...]"))?;
-    let toml: String = args.map(|a| a + "\n").collect();
-    let config = BakeConfig::from_toml_over(&BakeConfig::default(), &(toml + "probes = false\n"))?;
-    let scene = radbake::scene::load(std::path::Path::new(&path), &Default::default())?;
+    let (scene, config) = common::scene_and_settings(
+        "quantisation",
+        "probes = false
+",
+    )?;
     let bake = radbake::bake(&scene, &config, &Silent)?;
     let (texels, values) = (&bake.texels, &bake.maps.lightmaps.texel_values);
     let n = scene.instances.len();

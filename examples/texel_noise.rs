@@ -9,17 +9,13 @@
 //! KEY=VALUE pairs are settings as in a `--config` TOML file, e.g.
 //! `texels_per_meter=4 'sky=[0.4,0.5,0.7]'`.
 
+mod common;
+
 use radbake::{BakeConfig, Silent};
 use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
-    let mut args = std::env::args().skip(1);
-    let path = args
-        .next()
-        .ok_or_else(|| anyhow::anyhow!("usage: texel_noise SCENE [KEY=VALUE ...]"))?;
-    let toml: String = args.map(|a| a + "\n").collect();
-    let config = BakeConfig::from_toml_over(&BakeConfig::default(), &toml)?;
-    let scene = radbake::scene::load(std::path::Path::new(&path), &Default::default())?;
+    let (scene, config) = common::scene_and_settings("texel_noise", "")?;
     let mut bakes = Vec::new();
     for seed in [config.seed, config.seed.wrapping_add(1)] {
         let t = Instant::now();
