@@ -8,7 +8,7 @@
 //!     cargo run --release --example bdpt_vs_path [-- SIZE SECONDS]
 
 use glam::Vec3;
-use radbake::geometry::Geometry;
+use radbake::layout::geometry::Geometry;
 use radbake::raycast::RayCaster;
 use radbake::trace::render::{render, Integrator, View};
 use radbake::trace::Tracer;

@@ -4,7 +4,8 @@
 //!
 //!     cargo run --release --example build_step -- scenes/cornell_box.gltf out/build_step
 
-use radbake::{incremental, BakeConfig};
+use radbake::pipeline::incremental;
+use radbake::BakeConfig;
 use std::path::PathBuf;
 
 fn main() -> anyhow::Result<()> {

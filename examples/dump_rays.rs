@@ -177,7 +177,7 @@ fn rates(
 
 /// The file's bytes (layout in the module's documentation).
 fn file_bytes(
-    geometry: &radbake::geometry::Geometry,
+    geometry: &radbake::layout::geometry::Geometry,
     closest: &common::Rays,
     shadow: &common::Rays,
     (hit_t, occluded): (&[f32], &[u8]),

@@ -4,7 +4,7 @@
 //! `cargo run --release --example hemicube_bench [scene.gltf] [rows]`
 //! (default: the furnace box at the default density, 2,000 rows spread
 //! over its patches).
-use radbake::form_factors::hemicube;
+use radbake::radiosity::form_factors::hemicube;
 use radbake::raycast::RayCaster;
 use radbake::{BakeConfig, Silent};
 

@@ -16,7 +16,7 @@
 mod common;
 
 use glam::{Vec2, Vec3};
-use radbake::form_factors::raycast::Landing;
+use radbake::surface::Landing;
 use radbake::{BakeConfig, Silent};
 use std::collections::HashMap;
 
@@ -141,7 +141,7 @@ fn composition(a: &radbake::pipeline::Bake, tail: &[&Noisy], sky: f64) {
     let s = a.surfaces(&rays);
     let lum = |v: Vec3| v.element_sum() as f64 / 3.0;
     let values = &a.maps.lightmaps.texel_values;
-    let mut rng = radbake::sampling::Stream::new(7, 0, 0);
+    let mut rng = radbake::util::sampling::Stream::new(7, 0, 0);
     // Per class (sky, sunlit, shadowed, back face): rays, light, second
     // moment, each as a share of its texel's, summed over texels.
     let (mut rays_of, mut light, mut moment) = ([0.0f64; 4], [0.0f64; 4], [0.0f64; 4]);
@@ -153,8 +153,8 @@ fn composition(a: &radbake::pipeline::Bake, tail: &[&Noisy], sky: f64) {
         for _ in 0..512 {
             let (p, ng) = sampler.sample(rng.next_vec2());
             let u: Vec2 = rng.next_vec2();
-            let dir = sampler.to_world(radbake::sampling::cosine_hemisphere(u));
-            let origin = radbake::sampling::offset_ray_origin(p, ng);
+            let dir = sampler.to_world(radbake::util::sampling::cosine_hemisphere(u));
+            let origin = radbake::util::sampling::offset_ray_origin(p, ng);
             let (class, x) = match rays.closest_hit(origin, dir, f32::INFINITY) {
                 None => (0, sky),
                 Some(h) => match s.land(h.tri, h.u, h.v, dir) {

@@ -12,7 +12,7 @@
 mod common;
 
 use radbake::output::png8::relative_step;
-use radbake::progress::Silent;
+use radbake::pipeline::progress::Silent;
 
 fn main() -> anyhow::Result<()> {
     let (scene, config) = common::scene_and_settings(

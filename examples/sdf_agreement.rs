@@ -32,7 +32,7 @@ fn main() -> anyhow::Result<()> {
         }
     }
     let scene = radbake::scene::load(path.as_ref(), &Default::default())?;
-    let g = radbake::geometry::Geometry::unmapped(&scene);
+    let g = radbake::layout::geometry::Geometry::unmapped(&scene);
     let rays = radbake::raycast::RayCaster::new(&scene, &g);
     let bounds = g.bounds().ok_or_else(|| anyhow::anyhow!("no triangles"))?;
     let voxel = sdf::voxel_for_resolution(bounds, resolution);

@@ -2,7 +2,7 @@
 //! `radbake bake --sky-map`: a clear-sky gradient (horizon to zenith), a
 //! dim ground below the horizon and a bright glow of 3° around a sun
 //! direction, in radbake's convention (row 0 the zenith, the image centre
-//! −X; see `radbake::sky`). Its mean radiance over the upper hemisphere is
+//! −X; see `radbake::light::sky`). Its mean radiance over the upper hemisphere is
 //! near the `--sky 0.4,0.5,0.7` of the Sponza figures.
 //!
 //! `cargo run --release --example sky_map -- OUT.exr [WIDTH]`

@@ -2,8 +2,8 @@
 //! furnace box's hemicube F at the defaults (20,184 rows of ~14 k entries
 //! in runs of ~20 columns): `cargo run --release --example spmv_bench`.
 use glam::Vec3;
-use radbake::form_factors::Csr;
-use radbake::solve::jacobi::spmv;
+use radbake::radiosity::form_factors::Csr;
+use radbake::radiosity::solve::jacobi::spmv;
 
 fn main() {
     let n = 20_184usize;

@@ -18,9 +18,9 @@
 //!
 //!     cargo run --release --example validity_probe -- Sponza.lit.gltf texels_per_meter=4 near=0.5
 
-use radbake::form_factors::raycast::{Landing, Surfaces};
 use radbake::raycast::RayCaster;
-use radbake::sampling::{cosine_hemisphere, offset_ray_origin, stratified, Stream};
+use radbake::surface::{Landing, Surfaces};
+use radbake::util::sampling::{cosine_hemisphere, offset_ray_origin, stratified, Stream};
 use radbake::{BakeConfig, Silent};
 
 fn main() -> anyhow::Result<()> {

@@ -2,8 +2,6 @@
 //! flags, validated before any work starts.
 
 use crate::error::{Error, Result};
-pub use crate::scene::LightMode;
-use crate::scene::{Light, LightKind, Scene};
 use serde::{Deserialize, Serialize};
 
 /// Where the lightmap UVs come from.
@@ -261,7 +259,7 @@ pub struct BakeConfig {
     /// Uniform sky radiance (linear RGB, ≥ 0) seen by rays that leave the scene.
     pub sky: [f32; 3],
     /// An equirectangular HDRI (`.exr` or `.hdr`, linear RGB) seen by rays
-    /// that leave the scene instead of `sky` (see [`crate::sky`]); None:
+    /// that leave the scene instead of `sky` (see [`crate::light::sky`]); None:
     /// the uniform `sky`. A config file's relative path is relative to
     /// the file.
     pub sky_map: Option<std::path::PathBuf>,
@@ -284,19 +282,19 @@ pub struct BakeConfig {
     /// with `directional = "sh"` or AO, which need every ray.
     pub gather_threshold: f32,
     /// Light samples towards bright patches in the final gather, combined
-    /// with its cosine rays by MIS ([`crate::nee`]); needs a stored
+    /// with its cosine rays by MIS ([`crate::radiosity::patch_lights`]); needs a stored
     /// form-factor matrix (not `solver = "progressive"`).
     pub gather_nee: bool,
     /// The final gather's near field, in texels of the hit instance (the
     /// density used, as `report.json`'s `texels_per_meter`, × its texel scale):
     /// a ray that lands closer reads the local lights' direct light
     /// (emitters, point and spot lights) at its hit point, not the hit
-    /// texel's mean ([`crate::gather::NearField`]); 0: off.
+    /// texel's mean ([`crate::radiosity::gather::NearField`]); 0: off.
     pub gather_near_field: f32,
     /// Make both sides of UV seams on continuous surfaces agree.
     pub stitch_seams: bool,
     /// Fold every texel's sample points out of walls and solids that cross
-    /// it ([`crate::burial`]); off, rays may start inside them.
+    /// it ([`crate::surface::burial`]); off, rays may start inside them.
     pub burial_planes: bool,
     /// A texel is invalid (inside a solid, filled from its neighbours)
     /// when more than this fraction of its rays meet back faces (0 < x ≤ 1;
@@ -349,6 +347,71 @@ pub struct BakeConfig {
     pub light_modes: LightModes,
 }
 
+/// What a light contributes to the bake (per light: the node's
+/// `extras.radbake.mode`, config defaults per type, `--light-mode`), as
+/// Unity's Baked / Mixed / Realtime light modes:
+///
+/// | mode | lightmap | probes | the engine draws |
+/// |---|---|---|---|
+/// | `baked` | direct + bounced | direct + bounced | nothing (the bake has it all) |
+/// | `indirect` | bounced only | bounced only | the direct light, with its real-time shadows |
+/// | `shadowmask` | bounced only, plus its occlusion in a shadowmask channel | bounced only | the direct light × the shadowmask |
+/// | `realtime` | nothing | nothing | everything (the light is not baked) |
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum LightMode {
+    /// Direct and bounced light in the lightmap and the probes.
+    #[default]
+    Baked,
+    /// Only the bounced light; the engine draws the direct light in real time.
+    Indirect,
+    /// As `indirect`, plus the light's occlusion in a shadowmask channel.
+    Shadowmask,
+    /// Not baked at all.
+    Realtime,
+}
+
+impl LightMode {
+    /// The name used in glTF extras, config and the CLI.
+    pub fn name(self) -> &'static str {
+        match self {
+            LightMode::Baked => "baked",
+            LightMode::Indirect => "indirect",
+            LightMode::Shadowmask => "shadowmask",
+            LightMode::Realtime => "realtime",
+        }
+    }
+
+    /// Every mode, in the order of the table above.
+    pub const ALL: [LightMode; 4] = [
+        LightMode::Baked,
+        LightMode::Indirect,
+        LightMode::Shadowmask,
+        LightMode::Realtime,
+    ];
+
+    /// Parses a mode name (one of [`LightMode::ALL`]'s names).
+    pub fn parse(name: &str) -> Option<LightMode> {
+        LightMode::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// True for a light whose direct light the bake leaves to the engine
+    /// but whose bounced light it bakes (`indirect`, `shadowmask`).
+    pub fn is_mixed(self) -> bool {
+        matches!(self, LightMode::Indirect | LightMode::Shadowmask)
+    }
+}
+
 /// The bake mode of each punctual light ([`LightMode`]). A light's mode is,
 /// first found: `lights[name]` (its light's or its node's name; the CLI's
 /// `--light-mode NAME=MODE`), its node's `extras.radbake.mode`, the default
@@ -376,83 +439,6 @@ pub struct LightModes {
     pub lights: std::collections::BTreeMap<String, LightMode>,
 }
 
-impl LightModes {
-    /// The mode of `light` (see [`LightModes`]).
-    pub fn resolve(&self, light: &Light) -> LightMode {
-        let by_type = match light.kind {
-            LightKind::Directional => self.directional,
-            LightKind::Point => self.point,
-            LightKind::Spot { .. } => self.spot,
-        };
-        self.lights
-            .get(&light.name)
-            .or_else(|| self.lights.get(&light.node))
-            .copied()
-            .or(light.node_mode)
-            .or(by_type)
-            .unwrap_or_default()
-    }
-
-    /// Sets every light's [`Light::mode`] in `scene`.
-    ///
-    /// # Errors
-    /// [`Error::Config`] for a name in `lights` that names no light (a
-    /// misspelt name would otherwise bake the light in the wrong mode).
-    pub fn apply(&self, scene: &mut Scene) -> Result<()> {
-        self.check_names(scene)?;
-        for light in &mut scene.lights {
-            light.mode = self.resolve(light);
-        }
-        Ok(())
-    }
-
-    /// Checks that `scene`'s lights have the modes these settings give
-    /// them ([`LightModes::apply`] was called).
-    ///
-    /// # Errors
-    /// [`Error::Config`] naming the first light that differs, or a name
-    /// that names no light.
-    pub fn check(&self, scene: &Scene) -> Result<()> {
-        self.check_names(scene)?;
-        match scene.lights.iter().find(|l| l.mode != self.resolve(l)) {
-            Some(l) => Err(Error::Config {
-                key: "light_modes".into(),
-                message: format!(
-                    "light `{}` is {} in the scene but {} by these settings: call LightModes::apply on the scene before baking",
-                    l.name,
-                    l.mode.name(),
-                    self.resolve(l).name()
-                ),
-            }),
-            None => Ok(()),
-        }
-    }
-
-    fn check_names(&self, scene: &Scene) -> Result<()> {
-        for name in self.lights.keys() {
-            if !scene
-                .lights
-                .iter()
-                .any(|l| &l.name == name || &l.node == name)
-            {
-                let known: Vec<&str> = scene.lights.iter().map(|l| l.name.as_str()).collect();
-                return Err(Error::Config {
-                    key: format!("light_modes.lights.{name}"),
-                    message: format!(
-                        "no light is named `{name}` (the scene's lights: {})",
-                        if known.is_empty() {
-                            "none".to_owned()
-                        } else {
-                            known.join(", ")
-                        }
-                    ),
-                });
-            }
-        }
-        Ok(())
-    }
-}
-
 impl Default for BakeConfig {
     fn default() -> Self {
         Self::medium()
@@ -460,24 +446,6 @@ impl Default for BakeConfig {
 }
 
 impl BakeConfig {
-    /// The sky that rays leaving the scene see: `sky_map` loaded (turned
-    /// by `sky_rotation`, scaled by `sky_intensity`), else the uniform
-    /// `sky`.
-    ///
-    /// # Errors
-    /// The map's one-line errors ([`crate::sky::SkyMap::load`]).
-    pub fn load_sky(&self) -> Result<crate::sky::Sky> {
-        use crate::sky::{Sky, SkyMap};
-        match &self.sky_map {
-            None => Ok(Sky::Uniform(glam::Vec3::from(self.sky))),
-            Some(path) => Ok(Sky::Map(std::sync::Arc::new(SkyMap::load(
-                path,
-                self.sky_rotation,
-                self.sky_intensity,
-            )?))),
-        }
-    }
-
     /// Balanced defaults: the Cornell box gets about 64×64 texels per wall.
     pub const fn medium() -> Self {
         BakeConfig {

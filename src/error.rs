@@ -75,7 +75,7 @@ pub enum Error {
         message: String,
     },
     /// Not a failure: a shard job wrote its part and stops there
-    /// ([`crate::shard::Sharding::checkpoint`]).
+    /// ([`crate::pipeline::shard::Sharding::checkpoint`]).
     #[error("this shard's part is written")]
     ShardDone,
 }

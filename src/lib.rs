@@ -28,43 +28,25 @@
 //! # Ok::<(), radbake::Error>(())
 //! ```
 
-#[cfg(feature = "gpu")]
-pub mod adapter;
-pub mod atlas;
-pub mod burial;
 pub mod config;
-pub mod denoise;
-pub mod direct;
 pub mod error;
-pub mod form_factors;
-pub mod gather;
-pub mod geometry;
-pub mod incremental;
-pub mod lightmap;
-pub mod measure;
-pub mod nee;
+pub mod layout;
+pub mod light;
+pub mod maps;
 pub mod output;
-pub mod patches;
-pub mod photon;
 pub mod pipeline;
 #[cfg(feature = "preview")]
 pub mod preview;
 pub mod probes;
-pub mod progress;
+pub mod radiosity;
 pub mod raycast;
-pub mod report;
-pub mod sampling;
 pub mod scene;
 pub mod sdf;
-pub mod seams;
-pub mod shadowmask;
-pub mod shard;
-pub mod sky;
-pub mod solve;
-pub mod texels;
+pub mod surface;
 pub mod trace;
+pub mod util;
 
 pub use config::BakeConfig;
 pub use error::{Error, Result};
+pub use pipeline::progress::{Progress, Silent, Snapshot};
 pub use pipeline::{bake, bake_with, Bake};
-pub use progress::{Progress, Silent, Snapshot};

@@ -6,7 +6,7 @@
 mod common;
 
 use common::*;
-use radbake::form_factors::analytic;
+use radbake::radiosity::form_factors::analytic;
 use radbake::{BakeConfig, Silent};
 
 fn load(path: &std::path::Path) -> radbake::scene::Scene {

@@ -8,12 +8,13 @@ mod common;
 
 use common::scene_path;
 use glam::Vec3;
-use radbake::form_factors::raycast::Surfaces;
-use radbake::form_factors::raycast::{self, Landing};
-use radbake::gather::{Extras, Gatherer};
+use radbake::radiosity::form_factors::raycast;
+use radbake::radiosity::gather::{Extras, Gatherer};
 use radbake::raycast::batch::CpuBatches;
 use radbake::raycast::RayCaster;
 use radbake::scene::Scene;
+use radbake::surface::Landing;
+use radbake::surface::Surfaces;
 use radbake::{Bake, BakeConfig, Silent};
 
 /// Runs `check` on the Cornell box baked at 24 texels/m without a final
@@ -51,7 +52,8 @@ fn batched_form_factors_and_gather_equal_the_cpu_path() {
 
         // Any first pass will do: the bake's lightmap.
         let first = &bake.maps.lightmaps.texel_values;
-        let sampled = radbake::direct::sampled_materials(scene, &bake.geometry, config.emitters);
+        let sampled =
+            radbake::light::lights::sampled_materials(scene, &bake.geometry, config.emitters);
         let extras = Extras {
             directional: true,
             sky: Vec3::new(0.2, 0.3, 0.4).into(),
@@ -74,7 +76,7 @@ fn batched_form_factors_and_gather_equal_the_cpu_path() {
     });
 }
 
-/// [`Surfaces::land_many`](radbake::form_factors::raycast::Surfaces::land_many)
+/// [`Surfaces::land_many`](radbake::surface::Surfaces::land_many)
 /// gives every hit the landing that landing it alone gives: rays from
 /// random points in the Cornell box in random directions, so that they
 /// meet fronts, backs (the blocks' insides), unmapped and split texels.
@@ -85,7 +87,7 @@ fn landing_hits_together_equals_landing_each() {
             (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
             |(lo, hi), &p| (lo.min(p), hi.max(p)),
         );
-        let mut rng = radbake::sampling::Stream::new(5, 0, 0);
+        let mut rng = radbake::util::sampling::Stream::new(5, 0, 0);
         let cast: Vec<(Vec3, Option<radbake::raycast::Hit>)> = (0..20_000)
             .map(|_| {
                 let o = lo + (hi - lo) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
@@ -116,8 +118,9 @@ fn landing_hits_together_equals_landing_each() {
 /// texel must get what sampling would give, nothing and no rays.
 #[test]
 fn nothing_to_sample_gives_what_sampling_nothing_gives() {
-    use radbake::direct::{self, Lights, Mis, TexelDirect, TexelSettings};
-    use radbake::sampling::Stream;
+    use radbake::light::direct::{self, TexelDirect, TexelSettings};
+    use radbake::light::lights::{Lights, Mis};
+    use radbake::util::sampling::Stream;
     on_cornell(|scene, config, bake, s, _| {
         let lights = Lights::new(
             scene,

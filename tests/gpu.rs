@@ -11,11 +11,11 @@ mod common;
 use common::scene_path;
 use glam::Vec3;
 use radbake::config::{Device, FormFactorMethod, Solver};
-use radbake::geometry::Geometry;
+use radbake::layout::geometry::Geometry;
 use radbake::raycast::gpu::{GpuRayCaster, SHADER};
 use radbake::raycast::RayCaster;
-use radbake::sampling::Stream;
 use radbake::scene::Scene;
+use radbake::util::sampling::Stream;
 use radbake::{BakeConfig, Silent};
 
 fn load(name: &str) -> Scene {
@@ -185,8 +185,9 @@ fn gpu_hemicubes_match_cpu_hemicubes() {
 
 #[test]
 fn hemicube_shader_validates() {
-    let module = naga::front::wgsl::parse_str(radbake::form_factors::gpu_hemicube::SHADER)
-        .expect("hemicube.wgsl parses");
+    let module =
+        naga::front::wgsl::parse_str(radbake::radiosity::form_factors::gpu_hemicube::SHADER)
+            .expect("hemicube.wgsl parses");
     naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         naga::valid::Capabilities::empty(),

@@ -6,7 +6,7 @@ mod common;
 
 use base64::Engine as _;
 use common::*;
-use radbake::form_factors::analytic;
+use radbake::radiosity::form_factors::analytic;
 use radbake::{BakeConfig, Silent};
 use serde_json::json;
 

@@ -16,7 +16,7 @@ mod common;
 use common::{scene_path, temp_dir};
 use glam::Vec3;
 use radbake::config::{LightMode, LightModes};
-use radbake::measure::{Meter, MeterSettings};
+use radbake::trace::measure::{Meter, MeterSettings};
 use radbake::{BakeConfig, Silent};
 use serde_json::{json, Value};
 use std::f32::consts::PI;
@@ -277,7 +277,7 @@ fn cornell_indirect_point_light_matches_the_meter() {
         if bake.texels.area[t] < 0.99 * w * w || cos <= 0.05 || !bake.transport.valid[t] {
             continue;
         }
-        let origin = radbake::sampling::offset_ray_origin(p, nrm);
+        let origin = radbake::util::sampling::offset_ray_origin(p, nrm);
         if !rays.unoccluded(origin, d.normalize(), d.length() * 0.999) {
             continue;
         }

@@ -1,4 +1,4 @@
-//! The independent irradiance meter (`radbake::measure`, `radbake
+//! The independent irradiance meter (`radbake::trace::measure`, `radbake
 //! measure`): first checked against exact answers, then used as the oracle
 //! for the bake's physical per-instance figure (`report.json`'s `mean`).
 //! The meter shares no code with the atlas, texels, validity test or hole
@@ -7,7 +7,7 @@
 mod common;
 
 use common::{expected, scene_path};
-use radbake::measure::{Meter, MeterSettings, Reading};
+use radbake::trace::measure::{Meter, MeterSettings, Reading};
 use radbake::{BakeConfig, Silent};
 use std::process::Command;
 

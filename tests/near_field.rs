@@ -1,10 +1,10 @@
-//! The final gather's near field ([`radbake::gather::NearField`]): a gather
+//! The final gather's near field ([`radbake::radiosity::gather::NearField`]): a gather
 //! ray that lands closer than a texel reads the local lights' direct light
 //! at its hit point, not the hit texel's mean.
 //!
 //! Checked against independent answers: Howell's point-to-rectangle form
 //! factor for the point estimate, and the irradiance meter
-//! ([`radbake::measure`], no atlas, texels or gather) for a lamp on a
+//! ([`radbake::trace::measure`], no atlas, texels or gather) for a lamp on a
 //! wall, whose 5 cm side faces see the strip of wall they light.
 
 mod common;
@@ -12,10 +12,11 @@ mod common;
 use common::{quad, scene_path, temp_dir, GltfBuilder};
 use glam::Vec3;
 use radbake::config::EmitterSampling;
-use radbake::direct::{local_light_at, sampled_materials, Lights};
-use radbake::measure::{Meter, MeterSettings};
+use radbake::light::direct::local_light_at;
+use radbake::light::lights::{sampled_materials, Lights};
 use radbake::raycast::RayCaster;
-use radbake::sampling::Stream;
+use radbake::trace::measure::{Meter, MeterSettings};
+use radbake::util::sampling::Stream;
 use radbake::{BakeConfig, Silent};
 
 /// `local_light_at`'s estimate (one emitter sample and one cosine ray, MIS)

@@ -27,7 +27,7 @@ fn two_quads(name: &str, extras: Value) -> PathBuf {
 }
 
 /// The instances' report lines of a bake of `path`.
-fn bake(path: &Path, config: &BakeConfig) -> Vec<radbake::report::InstanceReport> {
+fn bake(path: &Path, config: &BakeConfig) -> Vec<radbake::pipeline::report::InstanceReport> {
     let scene = radbake::scene::load(path, &Default::default()).unwrap();
     radbake::bake(&scene, config, &Silent)
         .unwrap()
@@ -199,13 +199,13 @@ fn cast_shadows_false_leaves_a_node_out_of_the_rays() {
             plate.mean[0]
         );
     }
-    let settings = radbake::measure::MeterSettings {
+    let settings = radbake::trace::measure::MeterSettings {
         samples: 20_000,
         normal: Default::default(),
         sky: glam::Vec3::ZERO,
         seed: 3,
     };
-    let reading = &radbake::measure::Meter::new(&scene)
+    let reading = &radbake::trace::measure::Meter::new(&scene)
         .measure(&["ground".to_owned()], &settings)
         .unwrap()[0];
     assert!((reading.mean[0] as f32 - e).abs() < 1e-4 * e, "{reading:?}");

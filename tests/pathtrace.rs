@@ -11,7 +11,7 @@ mod common;
 
 use common::*;
 use glam::Vec3;
-use radbake::geometry::Geometry;
+use radbake::layout::geometry::Geometry;
 use radbake::raycast::RayCaster;
 use radbake::scene::Scene;
 use radbake::trace::render::{render, Image, Integrator, View};
@@ -427,7 +427,7 @@ fn renders_are_deterministic_across_thread_counts() {
 /// of its burial planes: those are checked for that instead.
 #[test]
 fn reference_texel_points_cover_the_texel() {
-    use radbake::sampling::{stratified, Stream};
+    use radbake::util::sampling::{stratified, Stream};
     let scene = load(&scene_path("cornell_box.gltf"));
     let density = 24.0;
     let cfg = BakeConfig {

@@ -1499,7 +1499,7 @@ fn sphere_traced_sun_shadow_matches_the_ray_cast_one() {
     let camera = radbake::preview::initial_camera(&model, &viewpoint).unwrap();
     let world_from_clip = camera.view_proj(w as f32 / h as f32).inverse();
     let scene = radbake::scene::load(&glb, &Default::default()).unwrap();
-    let geometry = radbake::geometry::Geometry::unmapped(&scene);
+    let geometry = radbake::layout::geometry::Geometry::unmapped(&scene);
     let rays = radbake::raycast::RayCaster::new(&scene, &geometry);
     let sun_share = 0.5 * SDF_SUN * sdf_to_sun().y / std::f32::consts::PI;
     let (mut reference, mut preview, mut both) = (0usize, 0usize, 0usize);

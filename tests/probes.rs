@@ -8,9 +8,9 @@ mod common;
 use common::{quad, scene_path, temp_dir, GltfBuilder};
 use glam::Vec3;
 use radbake::config::BakeConfig;
+use radbake::pipeline::progress::Silent;
 use radbake::probes::sh;
-use radbake::progress::Silent;
-use radbake::sampling::Stream;
+use radbake::util::sampling::Stream;
 use std::f32::consts::PI;
 
 /// Decodes RGB9E5 as the Vulkan specification defines it (written here
@@ -221,7 +221,7 @@ fn cornell_probes_agree_with_the_path_tracer() {
     };
     let bake = radbake::bake(&scene, &config, &Silent).unwrap();
     let probes = bake.probes.as_ref().unwrap();
-    let geometry = radbake::geometry::Geometry::unmapped(&scene);
+    let geometry = radbake::layout::geometry::Geometry::unmapped(&scene);
     let rays = radbake::raycast::RayCaster::new(&scene, &geometry);
     let tracer = radbake::trace::Tracer::new(&scene, &geometry, &rays, Vec3::ZERO);
     let axes = sh::AXES;

@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use radbake::form_factors::analytic;
+use radbake::radiosity::form_factors::analytic;
 use radbake::{BakeConfig, Silent};
 
 /// Parallel plates, final gather on: every receiver texel within 4 cm of the
@@ -358,7 +358,8 @@ fn directional_lightmaps_under_a_sky() {
     let mut checked = 0;
     for t in 0..bake.texels.len() {
         let [x, y] = bake.texels.xy[t];
-        let at = |lm: &radbake::lightmap::Lightmaps| lm.pages[0][(y * lm.width + x) as usize].x;
+        let at =
+            |lm: &radbake::maps::lightmap::Lightmaps| lm.pages[0][(y * lm.width + x) as usize].x;
         let (a, bx, by, bz) = (at(&sh[0]), at(&sh[1]), at(&sh[2]), at(&sh[3]));
         assert!((a - sky / 2.0).abs() < 0.03 * sky, "a = {a}");
         assert!((by - sky / 2.0).abs() < 0.03 * sky, "b_y = {by}");
@@ -697,15 +698,15 @@ fn texels_far_from_the_atlas_origin() {
         texels_per_meter: density,
         ..BakeConfig::default()
     };
-    let atlas = radbake::atlas::unwrap(&scene, &config).unwrap();
+    let atlas = radbake::layout::atlas::unwrap(&scene, &config).unwrap();
     assert!(
         atlas.width.max(atlas.height) >= 700,
         "{}×{}",
         atlas.width,
         atlas.height
     );
-    let geometry = radbake::geometry::Geometry::new(&scene, &atlas);
-    let texels = radbake::texels::rasterize(&scene, &atlas, &geometry);
+    let geometry = radbake::layout::geometry::Geometry::new(&scene, &atlas);
+    let texels = radbake::layout::texels::rasterize(&scene, &atlas, &geometry);
     let full = 1.0 / (density * density);
     let reach = 1.5 / density;
     let mut total = 0.0f64;

@@ -10,7 +10,7 @@ mod common;
 #[path = "benches/common/level.rs"]
 mod level;
 
-use radbake::measure::{Meter, MeterSettings};
+use radbake::trace::measure::{Meter, MeterSettings};
 use radbake::{BakeConfig, Silent};
 
 #[test]

@@ -12,7 +12,7 @@ use radbake::sdf::{self, Sdf, Settings};
 /// Bakes the field of the scene at `path` with voxels of `voxel` metres.
 fn bake(path: &std::path::Path, voxel: f32) -> Sdf {
     let scene = radbake::scene::load(path, &Default::default()).unwrap();
-    let g = radbake::geometry::Geometry::unmapped(&scene);
+    let g = radbake::layout::geometry::Geometry::unmapped(&scene);
     let rays = radbake::raycast::RayCaster::new(&scene, &g);
     sdf::bake(&scene, &g, &rays, Settings { voxel, band: None })
 }
@@ -321,7 +321,7 @@ fn open_box_in_a_room_agrees_with_the_closed_one() {
 fn sphere_tracing_agrees_with_the_bvh() {
     use sdf::agreement::{compare, random_rays, Class};
     let scene = radbake::scene::load(&scene_path("cornell_box.gltf"), &Default::default()).unwrap();
-    let g = radbake::geometry::Geometry::unmapped(&scene);
+    let g = radbake::layout::geometry::Geometry::unmapped(&scene);
     let rays = radbake::raycast::RayCaster::new(&scene, &g);
     let bounds = g.bounds().unwrap();
     let voxel = sdf::voxel_for_resolution(bounds, 128);
@@ -532,7 +532,7 @@ fn field_over_the_probe_volumes() {
     use radbake::config::SdfBounds;
     let path = volume_scene("sdf-volume");
     let scene = radbake::scene::load(&path, &Default::default()).unwrap();
-    let g = radbake::geometry::Geometry::unmapped(&scene);
+    let g = radbake::layout::geometry::Geometry::unmapped(&scene);
     let rays = radbake::raycast::RayCaster::new(&scene, &g);
     let voxel = 0.1;
     let settings = Settings { voxel, band: None };
@@ -613,7 +613,7 @@ fn against_the_whole(part: &sdf::Sdf, whole: &sdf::Sdf, (lo, hi): (Vec3, Vec3)) 
         to_wall += ((a - (1.6 - c.x)).abs() < 1e-4 && 1.6 - c.x < c.x - 1.0) as u32;
     }
     // At random points, trilinear.
-    let mut rng = radbake::sampling::Stream::new(3, 5, 0);
+    let mut rng = radbake::util::sampling::Stream::new(3, 5, 0);
     for _ in 0..1000 {
         let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
         let p = lo + (hi - lo) * u;

@@ -15,7 +15,8 @@ mod common;
 
 use common::{ground, scene_path, sunlit_ground, temp_dir};
 use glam::Vec3;
-use radbake::direct::{self, Lights, Mis};
+use radbake::light::direct;
+use radbake::light::lights::{Lights, Mis};
 use radbake::{BakeConfig, Silent};
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};

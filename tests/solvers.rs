@@ -7,9 +7,9 @@ mod common;
 
 use common::*;
 use radbake::config::{EmitterSampling, FormFactorMethod, Solver};
-use radbake::form_factors::analytic;
-use radbake::form_factors::rows::StoredColumns;
-use radbake::solve::{self, System};
+use radbake::radiosity::form_factors::analytic;
+use radbake::radiosity::form_factors::rows::StoredColumns;
+use radbake::radiosity::solve::{self, System};
 use radbake::{BakeConfig, Silent};
 use serde_json::json;
 

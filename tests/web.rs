@@ -9,8 +9,8 @@ mod common;
 use common::{scene_path, temp_dir};
 use glam::Vec3;
 use radbake::config::BakeConfig;
+use radbake::pipeline::progress::Silent;
 use radbake::probes::sh;
-use radbake::progress::Silent;
 use std::path::Path;
 use std::process::Command;
 

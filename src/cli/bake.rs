@@ -8,7 +8,7 @@ use clap::Args;
 use radbake::config::{
     DirectionalMode, EmitterSampling, FormFactorMethod, Method, Packing, Preset, Solver, UvSource,
 };
-use radbake::report::StageTime;
+use radbake::pipeline::report::StageTime;
 use radbake::BakeConfig;
 use std::path::PathBuf;
 use std::sync::Mutex;
@@ -341,7 +341,7 @@ pub fn run(args: &BakeArgs) -> Outcome {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "scene".into());
-    let hash = radbake::incremental::content_hash(&scene, &config);
+    let hash = radbake::pipeline::incremental::content_hash(&scene, &config);
     if !args.force && up_to_date(args, &stem, &hash) {
         return Ok(());
     }
@@ -386,7 +386,7 @@ pub fn run(args: &BakeArgs) -> Outcome {
         // The final .baked.glb supersedes the snapshots.
         let _ = std::fs::remove_file(&w.path);
     }
-    radbake::incremental::record(&args.out, &hash).map_err(lib_err)?;
+    radbake::pipeline::incremental::record(&args.out, &hash).map_err(lib_err)?;
     print_summary(args, &report, start, written.len());
     Ok(())
 }
@@ -453,7 +453,7 @@ fn up_to_date(args: &BakeArgs, stem: &str, hash: &str) -> bool {
         "lightmap_0.exr",
         glb.as_str(),
     ];
-    let fresh = radbake::incremental::up_to_date(&args.out, hash, &expected);
+    let fresh = radbake::pipeline::incremental::up_to_date(&args.out, hash, &expected);
     if fresh && !args.quiet {
         eprintln!(
             "{}: up to date (use --force to bake again)",
@@ -469,7 +469,7 @@ pub(super) fn write_outputs(
     out: &std::path::Path,
     stem: &str,
     bake: &radbake::Bake,
-    report: &mut radbake::report::Report,
+    report: &mut radbake::pipeline::report::Report,
 ) -> Result<Vec<PathBuf>, (u8, String)> {
     use radbake::output;
     let t = Instant::now();
@@ -498,7 +498,12 @@ pub(super) fn write_outputs(
 
 /// Stage times and counters (`--verbose`), the stats table (`--stats`),
 /// warnings and the one-line summary (unless `--quiet`).
-fn print_summary(args: &BakeArgs, report: &radbake::report::Report, start: Instant, files: usize) {
+fn print_summary(
+    args: &BakeArgs,
+    report: &radbake::pipeline::report::Report,
+    start: Instant,
+    files: usize,
+) {
     if args.verbose {
         for s in &report.stages {
             eprintln!("{:>13}: {:8.3} s", s.stage, s.seconds);
@@ -508,7 +513,10 @@ fn print_summary(args: &BakeArgs, report: &radbake::report::Report, start: Insta
         }
     }
     if args.stats {
-        eprint!("{}", report.stats_table(radbake::report::peak_rss_bytes()));
+        eprint!(
+            "{}",
+            report.stats_table(radbake::pipeline::report::peak_rss_bytes())
+        );
     }
     if !args.quiet {
         for w in &report.warnings {

@@ -1,10 +1,10 @@
 //! `radbake measure`: the independent irradiance meter
-//! ([`radbake::measure`]) from the command line, JSON out: the area-weighted
+//! ([`radbake::trace::measure`]) from the command line, JSON out: the area-weighted
 //! mean irradiance / π each node receives, with its standard error.
 
 use super::{lib_err, parse_rgb, Outcome};
 use clap::Args;
-use radbake::measure::{Meter, MeterNormal, MeterSettings};
+use radbake::trace::measure::{Meter, MeterNormal, MeterSettings};
 use std::path::PathBuf;
 
 #[derive(Args)]

@@ -62,15 +62,15 @@ pub fn run(args: &RenderArgs) -> Outcome {
     let geometry = match &baked {
         Some(b) => &b.geometry,
         None => {
-            unmapped = radbake::geometry::Geometry::unmapped(&scene);
+            unmapped = radbake::layout::geometry::Geometry::unmapped(&scene);
             &unmapped
         }
     };
     // `--sky`, else the bake's sky (its map, if it had one), else black.
     let sky = match (args.sky, &baked) {
-        (Some(c), _) => radbake::sky::Sky::Uniform(c.into()),
+        (Some(c), _) => radbake::light::sky::Sky::Uniform(c.into()),
         (None, Some(b)) => b.config.load_sky().map_err(lib_err)?,
-        (None, None) => radbake::sky::Sky::default(),
+        (None, None) => radbake::light::sky::Sky::default(),
     };
     let rays = radbake::raycast::RayCaster::new(&scene, geometry);
     let mut tracer = radbake::trace::Tracer::new(&scene, geometry, &rays, sky);
@@ -189,7 +189,7 @@ fn write_image(args: &RenderArgs, image: &radbake::trace::render::Image) -> Outc
 fn choose_view(
     args: &RenderArgs,
     scene: &radbake::scene::Scene,
-    geometry: &radbake::geometry::Geometry,
+    geometry: &radbake::layout::geometry::Geometry,
 ) -> Result<radbake::trace::render::View, (u8, String)> {
     use radbake::trace::render::View;
     let yfov = args.fov.to_radians();
@@ -223,7 +223,7 @@ fn choose_view(
 }
 
 /// Centre of the scene's bounding box.
-fn centre(geometry: &radbake::geometry::Geometry) -> glam::Vec3 {
+fn centre(geometry: &radbake::layout::geometry::Geometry) -> glam::Vec3 {
     let (mut lo, mut hi) = (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN));
     for p in geometry.p_ws.iter().flatten() {
         lo = lo.min(*p);

@@ -39,7 +39,7 @@ pub struct SdfArgs {
 pub fn run(args: &SdfArgs) -> Outcome {
     let start = Instant::now();
     let scene = radbake::scene::load(&args.scene, &Default::default()).map_err(lib_err)?;
-    let geometry = radbake::geometry::Geometry::unmapped(&scene);
+    let geometry = radbake::layout::geometry::Geometry::unmapped(&scene);
     if geometry.is_empty() {
         return Err((1, format!("{}: no triangles", args.scene.display())));
     }

@@ -1,5 +1,5 @@
 //! `radbake shard`: a bake split into jobs for a batch scheduler
-//! ([`radbake::shard`]). `plan` prepares the work folder; `run` and
+//! ([`radbake::pipeline::shard`]). `plan` prepares the work folder; `run` and
 //! `merge` are the jobs; `local`, `slurm` and `k8s` run the plan or print
 //! it for a scheduler. Every job sees the work folder at the same path
 //! (shared storage) and writes only its own file there, atomically.
@@ -7,7 +7,7 @@
 use super::bake::BakeArgs;
 use super::{classify, lib_err, Outcome};
 use clap::{Args, Subcommand};
-use radbake::shard::{Job, Sharding};
+use radbake::pipeline::shard::{Job, Sharding};
 use radbake::BakeConfig;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -208,7 +208,7 @@ fn plan(a: &PlanArgs) -> Outcome {
         .map_err(lib_err)?;
     let scene_path = scene_dir.join(name);
     let scene = load(&scene_path, &config)?;
-    let hash = radbake::incremental::content_hash(&scene, &config);
+    let hash = radbake::pipeline::incremental::content_hash(&scene, &config);
     let d = dir.display().to_string();
     let phases: Vec<Value> = phases(&d, a.shards)
         .into_iter()
@@ -371,7 +371,7 @@ fn job(dir: &Path, job: impl FnOnce(u32) -> Job) -> Outcome {
         BakeConfig::from_toml(&text).map_err(|e| (1, format!("{}: {e}", config_path.display())))?;
     let scene_path = work.join(plan["scene"].as_str().unwrap_or_default());
     let scene = load(&scene_path, &config)?;
-    let hash = radbake::incremental::content_hash(&scene, &config);
+    let hash = radbake::pipeline::incremental::content_hash(&scene, &config);
     if plan["hash"].as_str() != Some(hash.as_str()) {
         return Err((
             1,
@@ -405,7 +405,7 @@ fn job(dir: &Path, job: impl FnOnce(u32) -> Job) -> Outcome {
         Ok(bake) => {
             let mut report = bake.report(&scene_path.display().to_string());
             let written = super::bake::write_outputs(&work, &stem, &bake, &mut report)?;
-            radbake::incremental::record(&work, &hash).map_err(lib_err)?;
+            radbake::pipeline::incremental::record(&work, &hash).map_err(lib_err)?;
             eprintln!(
                 "merged: {} files in {} ({:.2} s)",
                 written.len(),

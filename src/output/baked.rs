@@ -15,8 +15,8 @@
 //!   chunk.
 
 use super::png8::EncodedPage;
-use crate::atlas::Atlas;
 use crate::error::{Error, Result};
+use crate::layout::atlas::Atlas;
 use crate::scene::Scene;
 use serde_json::{json, Value};
 use std::collections::HashMap;
@@ -176,7 +176,7 @@ fn light_modes(scene: &Scene, channel: Option<&[Option<u8>]>, doc: &mut Value) {
             continue;
         };
         let c = channel.and_then(|c| c[l]);
-        let mode = crate::shadowmask::baked_mode(light, c);
+        let mode = crate::maps::shadowmask::baked_mode(light, c);
         radbake.insert("mode".into(), json!(mode.name()));
         if let Some(c) = c {
             radbake.insert(
@@ -314,7 +314,7 @@ pub struct Masks<'a> {
     pub channel: &'a [Option<u8>],
 }
 
-use crate::shadowmask::CHANNEL_NAMES;
+use crate::maps::shadowmask::CHANNEL_NAMES;
 
 /// The shadowmask pages as PNG textures (linear data, clamped, filtered
 /// bilinearly), in page order.

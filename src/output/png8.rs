@@ -16,8 +16,8 @@
 //! Texels outside every instance's rectangle (unused padding) are encoded
 //! against the page's largest value.
 
-use crate::atlas::Atlas;
-use crate::lightmap::Lightmaps;
+use crate::layout::atlas::Atlas;
+use crate::maps::lightmap::Lightmaps;
 use crate::scene::texture::{linear_to_srgb, srgb_to_linear};
 use glam::Vec3;
 
@@ -60,7 +60,7 @@ fn owners(atlas: &Atlas, page: u32, w: u32, h: u32) -> Vec<usize> {
 /// A dither offset in [−½, ½) for (page, texel, channel): a hash, so the
 /// output is the same on every run and thread count.
 fn dither(page: usize, texel: u32, channel: u32) -> f32 {
-    let z = crate::sampling::mix((page as u64) << 40 ^ (texel as u64) << 2 ^ channel as u64);
+    let z = crate::util::sampling::mix((page as u64) << 40 ^ (texel as u64) << 2 ^ channel as u64);
     (z >> 40) as f32 / (1u64 << 24) as f32 - 0.5
 }
 

@@ -1,4 +1,4 @@
-//! The shadowmask's files ([`crate::shadowmask`]): per page
+//! The shadowmask's files ([`crate::maps::shadowmask`]): per page
 //! `shadowmask_<page>.png` (RGBA, 8-bit, *linear*: the visible fraction ×
 //! 255, no sRGB curve), `shadowmask_<page>.exr` (RGBA float) and, unless
 //! `--ktx2 off`, `shadowmask_<page>.ktx2` (`R8G8B8A8_UNORM`, zstd), with
@@ -7,8 +7,8 @@
 
 use super::{ktx2, write_atomic, write_bytes_atomic};
 use crate::error::{Error, Result};
+use crate::maps::shadowmask::{Shadowmask, CHANNELS, CHANNEL_NAMES};
 use crate::scene::Light;
-use crate::shadowmask::{Shadowmask, CHANNELS, CHANNEL_NAMES};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 

@@ -1,8 +1,8 @@
 //! What a bake's stages report to ([`Log`]): progress, the wall time of
 //! each stage, and warnings.
 
-use crate::progress::Progress;
-use crate::report::StageTime;
+use crate::pipeline::progress::Progress;
+use crate::pipeline::report::StageTime;
 use std::time::Instant;
 
 /// What the stages report to: progress, the wall time of each stage, and

@@ -5,11 +5,11 @@
 
 use super::texel_light::TexelLight;
 use crate::config::BakeConfig;
-use crate::direct::Directional;
-use crate::form_factors::raycast::Surfaces;
-use crate::lightmap::{self, Lightmaps};
-use crate::seams;
-use crate::texels::Texels;
+use crate::layout::texels::Texels;
+use crate::light::lights::Directional;
+use crate::maps::lightmap::{self, Lightmaps};
+use crate::maps::seams;
+use crate::surface::Surfaces;
 use glam::{Vec2, Vec3};
 
 /// The lightmap stage's product.

@@ -14,28 +14,33 @@
 //! [`TexelLight`]. The lightmap stage ([`maps`]) turns it into pages (and
 //! the SH and AO pages); [`summary`] turns a [`Bake`] into the report.
 
+pub mod incremental;
 pub mod log;
 pub mod maps;
+pub mod progress;
 pub mod radiosity;
+pub mod report;
+pub mod shard;
 pub mod snapshot;
 pub mod summary;
 pub mod texel_light;
 pub mod transport;
 
-use crate::atlas::{self, Atlas};
-use crate::burial::{self, Burial};
 use crate::config::BakeConfig;
 use crate::error::Result;
-use crate::form_factors::raycast::Surfaces;
-use crate::geometry::Geometry;
-use crate::patches::{self, Patches};
+use crate::layout::atlas::{self, Atlas};
+use crate::layout::burial::Burial;
+use crate::layout::geometry::Geometry;
+use crate::layout::patches::{self, Patches};
+use crate::layout::texels::{self, Texels};
+use crate::maps::shadowmask::Shadowmask;
+use crate::pipeline::progress::Progress;
+use crate::pipeline::report::StageTime;
 use crate::probes::{self, Probes};
-use crate::progress::Progress;
 use crate::raycast::RayCaster;
-use crate::report::StageTime;
 use crate::scene::Scene;
-use crate::shadowmask::Shadowmask;
-use crate::texels::{self, Texels};
+use crate::surface::burial;
+use crate::surface::Surfaces;
 use log::Log;
 pub use maps::Maps;
 pub use texel_light::{PatchLight, Rays, TexelLight};
@@ -84,10 +89,15 @@ pub fn bake<'s>(
     config: &BakeConfig,
     progress: &dyn Progress,
 ) -> Result<Bake<'s>> {
-    bake_with(scene, config, progress, &crate::shard::Sharding::whole())
+    bake_with(
+        scene,
+        config,
+        progress,
+        &crate::pipeline::shard::Sharding::whole(),
+    )
 }
 
-/// [`bake`] as one job of a sharded bake ([`crate::shard`]): the sliced
+/// [`bake`] as one job of a sharded bake ([`crate::pipeline::shard`]): the sliced
 /// stages compute, write or read their slices as `shard` says, and a job
 /// whose part is written stops there with
 /// [`Error::ShardDone`](crate::Error::ShardDone).
@@ -99,7 +109,7 @@ pub fn bake_with<'s>(
     scene: &'s Scene,
     config: &BakeConfig,
     progress: &dyn Progress,
-    shard: &crate::shard::Sharding,
+    shard: &crate::pipeline::shard::Sharding,
 ) -> Result<Bake<'s>> {
     check_inputs(scene, config)?;
     // The sky map is read (and refused) before any work is done.
@@ -206,18 +216,18 @@ pub fn bake_with<'s>(
 
 /// The settings and the scene together, refused before any work: the
 /// settings' own checks, the light modes against the scene's lights, at
-/// most [`crate::shadowmask::MAX_LIGHTS`] shadowmask lights, and probe
+/// most [`crate::maps::shadowmask::MAX_LIGHTS`] shadowmask lights, and probe
 /// volumes where the distance field is to cover them.
 fn check_inputs(scene: &Scene, config: &BakeConfig) -> Result<()> {
     config.validate()?;
     config.light_modes.check(scene)?;
-    let masked = crate::shadowmask::lights(&scene.lights).len();
-    if masked > crate::shadowmask::MAX_LIGHTS {
+    let masked = crate::maps::shadowmask::lights(&scene.lights).len();
+    if masked > crate::maps::shadowmask::MAX_LIGHTS {
         return Err(crate::Error::Config {
             key: "light_modes".into(),
             message: format!(
                 "{masked} shadowmask lights, above the limit of {}; make the others indirect",
-                crate::shadowmask::MAX_LIGHTS
+                crate::maps::shadowmask::MAX_LIGHTS
             ),
         });
     }
@@ -275,7 +285,7 @@ impl<'s> Bake<'s> {
     }
 }
 
-/// The burial stage ([`crate::burial`]), or no planes where
+/// The burial stage ([`crate::surface::burial`]), or no planes where
 /// `config.burial_planes` is off.
 fn burial_planes(
     scene: &Scene,
@@ -303,14 +313,14 @@ fn burial_planes(
     let burial = burial::compute(
         &s,
         config.seed,
-        crate::gather::VALIDITY_RAYS,
+        crate::surface::validity::VALIDITY_RAYS,
         config.backface_tolerance,
     );
     log.end("burial");
     burial
 }
 
-/// The shadowmask stage ([`crate::shadowmask`]) where the scene has
+/// The shadowmask stage ([`crate::maps::shadowmask`]) where the scene has
 /// shadowmask lights; a light without a channel is warned about.
 fn shadowmask(
     s: &Surfaces,
@@ -319,15 +329,15 @@ fn shadowmask(
     config: &BakeConfig,
     log: &mut Log,
 ) -> Option<Shadowmask> {
-    if crate::shadowmask::lights(&s.scene.lights).is_empty() {
+    if crate::maps::shadowmask::lights(&s.scene.lights).is_empty() {
         return None;
     }
     log.begin("shadowmask", 0);
     let rings = (
-        crate::lightmap::fill_rings(config.patch_texels),
+        crate::maps::lightmap::fill_rings(config.patch_texels),
         2 * config.padding,
     );
-    let mask = crate::shadowmask::bake(s, valid, page_count, rings, config.seed);
+    let mask = crate::maps::shadowmask::bake(s, valid, page_count, rings, config.seed);
     if let Some(m) = &mask {
         log.warnings.extend(m.warnings(&s.scene.lights));
     }

@@ -13,20 +13,23 @@
 use super::log::Log;
 use super::snapshot::Snapshots;
 use super::texel_light::{PatchLight, Rays, TexelLight};
-use crate::atlas::Atlas;
 use crate::config::{self, BakeConfig, FormFactorMethod, Solver};
-use crate::direct::{self, Directional, Lights, Mis};
 use crate::error::{Error, Result};
-use crate::form_factors::raycast::Surfaces;
-use crate::form_factors::rows::OnDemand;
-use crate::form_factors::{self, hemicube, FormFactors};
-use crate::gather::{self, Extras, Gathered, Gatherer};
-use crate::nee::PatchLights;
+use crate::layout::atlas::Atlas;
+use crate::light::direct;
+use crate::light::lights;
+use crate::light::lights::{Directional, Lights, Mis};
+use crate::maps::lightmap;
+use crate::pipeline::shard::Sharding;
+use crate::radiosity::denoise;
+use crate::radiosity::form_factors::rows::OnDemand;
+use crate::radiosity::form_factors::{self, hemicube, FormFactors};
+use crate::radiosity::gather::{self, Extras, Gathered, Gatherer};
+use crate::radiosity::patch_lights::PatchLights;
+use crate::radiosity::solve::{self, progressive, System};
 use crate::raycast::batch::BatchCaster;
 use crate::raycast::device;
-use crate::shard::Sharding;
-use crate::solve::{self, progressive, System};
-use crate::{denoise, lightmap};
+use crate::surface::Surfaces;
 use glam::Vec3;
 
 /// The direct-light stage's product.
@@ -55,7 +58,7 @@ pub fn run(
     s: &Surfaces,
     atlas: &Atlas,
     config: &BakeConfig,
-    sky: &crate::sky::Sky,
+    sky: &crate::light::sky::Sky,
     log: &mut Log,
     shard: &Sharding,
 ) -> Result<TexelLight> {
@@ -183,9 +186,9 @@ fn pre_validity(
 ) -> (Vec<bool>, u64) {
     log.begin("validity", s.texels.len() as u64);
     let (pre, validity_rays) = if s.burial.valid.is_empty() {
-        let v = gather::validity(
+        let v = crate::surface::validity::validity(
             s,
-            gather::VALIDITY_RAYS,
+            crate::surface::validity::VALIDITY_RAYS,
             config.seed,
             config.backface_tolerance,
         );
@@ -208,7 +211,7 @@ fn pre_validity(
 /// invalid texels filled), the validity estimate before it (`pre`), the
 /// direct light and the patch solution.
 struct GatherInputs<'a> {
-    sky: &'a crate::sky::Sky,
+    sky: &'a crate::light::sky::Sky,
     first: &'a [Vec3],
     pre: &'a [bool],
     direct: &'a DirectLight,
@@ -277,7 +280,7 @@ fn gather_stage(
         let texels = shard.items(
             "gather",
             s.texels.len(),
-            |count| crate::shard::balanced(&cost, count),
+            |count| crate::pipeline::shard::balanced(&cost, count),
             |range| gatherer.gather_range(range, &advance),
         )?;
         gatherer.assemble(texels)
@@ -298,7 +301,7 @@ fn gatherer<'a>(
     first: &'a [Vec3],
     direct: &'a DirectLight,
     config: &BakeConfig,
-    sky: &crate::sky::Sky,
+    sky: &crate::light::sky::Sky,
 ) -> Gatherer<'a> {
     let extras = Extras {
         directional: config.directional == config::DirectionalMode::Sh,
@@ -439,7 +442,7 @@ fn gpu_device(
     if config.device != config::Device::Gpu {
         return None;
     }
-    match hemicube::gpu(s.geometry, config.hemicube_resolution) {
+    match open_gpu_hemicubes(s.geometry, config.hemicube_resolution) {
         Ok(g) => {
             warnings.push(format!("hemicubes rendered on the GPU: {}", g.describe()));
             Some(g)
@@ -462,11 +465,11 @@ fn gpu_device(
 fn direct_light(
     s: &Surfaces,
     config: &BakeConfig,
-    sky: &crate::sky::Sky,
+    sky: &crate::light::sky::Sky,
     advance: &(dyn Fn(u64) + Sync),
     shard: &Sharding,
 ) -> Result<DirectLight> {
-    let sampled = direct::sampled_materials(s.scene, s.geometry, config.emitters);
+    let sampled = lights::sampled_materials(s.scene, s.geometry, config.emitters);
     let mut lights = Lights::new(s.scene, s.geometry, &sampled, sky.clone());
     lights.sky_samples = config.sky_samples;
     let gathering = config.final_gather > 0 && config.final_gather >= config.direct_samples;
@@ -501,7 +504,7 @@ fn direct_light(
     let texels = shard.items(
         "direct",
         n,
-        |count| crate::shard::balanced(&cost(), count),
+        |count| crate::pipeline::shard::balanced(&cost(), count),
         |range| direct::texel_range(s, &lights, &settings, range, advance),
     )?;
     let parts = direct::assemble(texels);
@@ -528,7 +531,7 @@ fn direct_light(
     })
 }
 
-/// The form-factor rows of a sharded bake ([`crate::shard`]): a phase-1
+/// The form-factor rows of a sharded bake ([`crate::pipeline::shard`]): a phase-1
 /// job casts its slice of patches' rows on the CPU; later jobs read them.
 fn sharded_form_factors(
     s: &Surfaces,
@@ -548,7 +551,7 @@ fn sharded_form_factors(
     let rows = shard.items(
         "rows",
         n,
-        |count| crate::shard::balanced(&cost(), count),
+        |count| crate::pipeline::shard::balanced(&cost(), count),
         |range| {
             (range.into_par_iter())
                 .map(|i| {
@@ -774,4 +777,24 @@ fn texel_sizes(s: &Surfaces, atlas: &Atlas) -> Vec<f32> {
         .iter()
         .map(|i| 1.0 / (atlas.texels_per_meter * i.texel_scale))
         .collect()
+}
+
+/// Hemicubes of resolution `n` on the GPU (`device = "gpu"`).
+///
+/// # Errors
+/// No adapter, a driver that refuses the pipeline, or a build without the
+/// `gpu` feature: the caller renders hemicubes on the CPU.
+fn open_gpu_hemicubes(
+    geometry: &crate::layout::geometry::Geometry,
+    n: u32,
+) -> anyhow::Result<Box<dyn hemicube::RowBatches>> {
+    #[cfg(feature = "gpu")]
+    return Ok(Box::new(
+        crate::radiosity::form_factors::gpu_hemicube::GpuHemicubes::new(geometry, n)?,
+    ));
+    #[cfg(not(feature = "gpu"))]
+    {
+        let _ = (geometry, n);
+        anyhow::bail!("radbake was built without the `gpu` feature")
+    }
 }

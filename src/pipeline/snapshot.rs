@@ -6,12 +6,12 @@
 //! ([`progressive::ambient`]), spread over the texels by the first pass
 //! (no final gather, no seam stitching).
 
-use crate::atlas::Atlas;
-use crate::form_factors::raycast::Surfaces;
-use crate::lightmap;
-use crate::progress::{Progress, Snapshot};
-use crate::solve::progressive::{self, Partial};
-use crate::solve::System;
+use crate::layout::atlas::Atlas;
+use crate::maps::lightmap;
+use crate::pipeline::progress::{Progress, Snapshot};
+use crate::radiosity::solve::progressive::{self, Partial};
+use crate::radiosity::solve::System;
+use crate::surface::Surfaces;
 use glam::Vec3;
 use std::time::Instant;
 

@@ -2,13 +2,13 @@
 //! means, the power balance of the patch solution, and the counters.
 
 use super::Bake;
-use crate::report::{Counts, Energy, InstanceReport, Report};
+use crate::pipeline::report::{Counts, Energy, InstanceReport, Report};
 
 impl Bake<'_> {
     /// Per instance: the area-weighted mean of the light that arrives
     /// (`mean`: texel values as light transport left them over each
     /// texel's exposed part, and nothing over buried parts and invalid
-    /// texels, see [`crate::burial`]), of the filled and stitched lightmap
+    /// texels, see [`crate::surface::burial`]), of the filled and stitched lightmap
     /// (`lightmap_mean`), and the area of valid texels.
     pub fn instance_reports(&self) -> Vec<InstanceReport> {
         let n = self.scene.instances.len();
@@ -165,7 +165,7 @@ impl Bake<'_> {
             },
             energy: self.energy(),
             instances: self.instance_reports(),
-            lights: crate::report::LightReport::all(
+            lights: crate::pipeline::report::LightReport::all(
                 &self.scene.lights,
                 self.shadowmask.as_ref().map(|m| m.channel.as_slice()),
             ),

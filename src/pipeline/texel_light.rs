@@ -2,9 +2,9 @@
 //! [`TexelLight`] (the light per texel, its validity, the rays cast), with
 //! radiosity's patch-level solution ([`PatchLight`]) where radiosity ran.
 
-use crate::direct::Directional;
-use crate::form_factors::{FormFactorStats, FormFactors};
-use crate::solve::Solution;
+use crate::light::lights::Directional;
+use crate::radiosity::form_factors::{FormFactorStats, FormFactors};
+use crate::radiosity::solve::Solution;
 use glam::Vec3;
 
 /// The light per texel, as every method of light transport returns it.
@@ -29,7 +29,7 @@ pub struct TexelLight {
     /// Ambient occlusion per texel (`--ao DISTANCE` with the final gather).
     pub ao: Option<Vec<f32>>,
     /// The final gather's estimate of each texel's variance (luminance,
-    /// of the texel's mean before denoising; [`crate::gather::Gathered`]);
+    /// of the texel's mean before denoising; [`crate::radiosity::gather::Gathered`]);
     /// empty without a final gather. Σ a² var / (Σ a)² over an instance's
     /// texels is the variance of its mean, which the denoiser does not
     /// change (it conserves each chart's power).

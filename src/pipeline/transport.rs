@@ -1,18 +1,19 @@
 //! Light transport: surfaces → [`TexelLight`], one function per
 //! [`Method`]. Radiosity ([`super::radiosity`]) is the bake; path tracing
-//! ([`crate::trace`], Kajiya 1986) and photon mapping ([`crate::photon`],
+//! ([`crate::trace`], Kajiya 1986) and photon mapping ([`crate::trace::photon`],
 //! Jensen 1996) are the references it is checked against, and return the
 //! same product.
 
 use super::log::Log;
 use super::radiosity;
 use super::texel_light::{Rays, TexelLight};
-use crate::atlas::Atlas;
 use crate::config::{BakeConfig, Method};
-use crate::direct::{self, Lights, Mis};
 use crate::error::{Error, Result};
-use crate::form_factors::raycast::Surfaces;
-use crate::sky::Sky;
+use crate::layout::atlas::Atlas;
+use crate::light::direct;
+use crate::light::lights::{Lights, Mis};
+use crate::light::sky::Sky;
+use crate::surface::Surfaces;
 use crate::trace::{self, Tracer};
 use glam::Vec3;
 
@@ -26,7 +27,7 @@ pub fn run(
     config: &BakeConfig,
     sky: &Sky,
     log: &mut Log,
-    shard: &crate::shard::Sharding,
+    shard: &crate::pipeline::shard::Sharding,
 ) -> Result<TexelLight> {
     match config.method {
         Method::Radiosity => radiosity::run(s, atlas, config, sky, log, shard),
@@ -69,7 +70,7 @@ fn pathtrace(s: &Surfaces, config: &BakeConfig, sky: &Sky, log: &mut Log) -> Tex
     tracer.skip_mixed_direct = true;
     let progress = log.progress();
     log.begin("path_trace", s.texels.len() as u64);
-    let (values, valid) = trace::reference_texels(
+    let (values, valid) = trace::reference::reference_texels(
         &tracer,
         s.texels,
         &|t, j, rng| s.sample_texel_area(t, j, rng),
@@ -102,7 +103,7 @@ fn photon(s: &Surfaces, config: &BakeConfig, log: &mut Log) -> Result<TexelLight
     let progress = log.progress();
     log.begin("photons", s.texels.len() as u64);
     let (values, valid, rays) =
-        crate::photon::bake_texels(s, &tracer, config, &|n| progress.advance(n));
+        crate::trace::photon::bake_texels(s, &tracer, config, &|n| progress.advance(n));
     log.end("photons");
     Ok(TexelLight {
         mixed: mixed_direct(s, config),

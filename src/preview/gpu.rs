@@ -58,7 +58,7 @@ pub struct Globals {
 pub const MAX_LIGHTS: usize = 8;
 
 /// WGSL `PreviewLight`: one punctual light drawn in real time, with the
-/// bake's own falloff ([`crate::direct::punctual_incident`]).
+/// bake's own falloff ([`crate::light::lights::punctual_incident`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct PreviewLight {

@@ -5,7 +5,7 @@
 use super::model::Model;
 use super::options::{initial_camera, Options};
 use super::renderer::{self, Renderer};
-use crate::adapter::{describe, offscreen_device};
+use crate::util::adapter::{describe, offscreen_device};
 use anyhow::{anyhow, Context as _, Result};
 use std::path::Path;
 use std::time::Instant;
@@ -43,7 +43,7 @@ pub fn render_headless(model: &Model, opts: &Options) -> Result<Headless> {
     r.resize(w, h);
     let frames = opts.frames.unwrap_or(1).max(1);
     let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
-    let target = crate::adapter::render_target(&device, "headless", (w, h), format, usage);
+    let target = crate::util::adapter::render_target(&device, "headless", (w, h), format, usage);
     let view = target.create_view(&Default::default());
     // A warm-up frame (pipeline compilation, uploads), then the timed ones,
     // each waited for so the time is the GPU's, not the queue's.

@@ -191,7 +191,7 @@ pub fn parse_shadowmasks(
         if let Some(t) = sm["index"].as_u64() {
             textures[lm.page] = Some(t as usize);
         }
-        for (c, name) in crate::shadowmask::CHANNEL_NAMES.iter().enumerate() {
+        for (c, name) in crate::maps::shadowmask::CHANNEL_NAMES.iter().enumerate() {
             for node in sm["channels"][name].as_array().into_iter().flatten() {
                 if let Some(n) = node.as_u64() {
                     channels.insert(n as usize, c as u8);

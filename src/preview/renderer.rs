@@ -397,7 +397,7 @@ impl Renderer {
         match &self.depth {
             Some((view, dw, dh)) if (*dw, *dh) == (w, h) => view.clone(),
             _ => {
-                let texture = crate::adapter::render_target(
+                let texture = crate::util::adapter::render_target(
                     &self.device,
                     "depth",
                     (w, h),
@@ -445,7 +445,7 @@ impl Renderer {
                         store: wgpu::StoreOp::Store,
                     },
                 })],
-                depth_stencil_attachment: Some(crate::adapter::reversed_z_depth(&depth)),
+                depth_stencil_attachment: Some(crate::util::adapter::reversed_z_depth(&depth)),
                 timestamp_writes: None,
                 occlusion_query_set: None,
                 multiview_mask: None,

@@ -67,14 +67,14 @@ impl App {
                 .create_window(attrs)
                 .context("cannot create a window")?,
         );
-        let instance = crate::adapter::instance(
+        let instance = crate::util::adapter::instance(
             wgpu::Backends::all(),
             Some(Box::new(event_loop.owned_display_handle())),
         );
         let surface = instance
             .create_surface(window.clone())
             .context("cannot create a window surface")?;
-        let (adapter, device, queue) = crate::adapter::device(&instance, Some(&surface))?;
+        let (adapter, device, queue) = crate::util::adapter::device(&instance, Some(&surface))?;
         let size = window.inner_size();
         let mut config = surface
             .get_default_config(&adapter, size.width.max(1), size.height.max(1))
@@ -108,7 +108,7 @@ impl App {
             self.opts.settings,
         );
         renderer.resize(config.width, config.height);
-        let adapter = crate::adapter::describe(&adapter);
+        let adapter = crate::util::adapter::describe(&adapter);
         eprintln!("radbake preview on {adapter}\n{HELP}");
         self.state = Some(State {
             window,

@@ -21,9 +21,9 @@
 //!   is inside a solid (as Unreal judges distance-field signs).
 
 use super::sh::{self, Sh9};
-use crate::direct::{light_visibility, punctual_incident, punctual_unoccluded, Lights, Mis};
-use crate::form_factors::raycast::{Landing, Surfaces};
-use crate::sampling::{Net, Stream};
+use crate::light::lights::{light_visibility, punctual_incident, punctual_unoccluded, Lights, Mis};
+use crate::surface::{Landing, Surfaces};
+use crate::util::sampling::{Net, Stream};
 use glam::{Quat, Vec3};
 
 /// Stream purpose id of probe rays.
@@ -94,7 +94,7 @@ fn random_rotation(rng: &mut Stream) -> Quat {
 /// shadow rays cast.
 fn sky_samples(
     s: &Surfaces,
-    map: &crate::sky::SkyMap,
+    map: &crate::light::sky::SkyMap,
     p: Vec3,
     sky_mis: Mis,
     rng: &mut Stream,
@@ -104,7 +104,7 @@ fn sky_samples(
     let shift = rng.next_vec2();
     let mut cast = 0;
     for k in 0..ms {
-        let (dir, pdf, l) = map.sample(crate::direct::hammersley(k, ms, shift));
+        let (dir, pdf, l) = map.sample(crate::util::sampling::hammersley(k, ms, shift));
         if pdf <= 0.0 {
             continue;
         }

@@ -15,8 +15,8 @@ pub mod placement;
 pub mod sh;
 
 use crate::config::BakeConfig;
-use crate::direct::{sampled_materials, Lights};
-use crate::form_factors::raycast::Surfaces;
+use crate::light::lights::{sampled_materials, Lights};
+use crate::surface::Surfaces;
 use glam::Vec3;
 use light::ProbeLight;
 pub use placement::{Volume, VolumeSpec};
@@ -192,7 +192,7 @@ pub struct Inputs<'a> {
     /// empty), which the lightmap leaves out but the surfaces reflect.
     pub mixed: &'a [Vec3],
     /// What rays leaving the scene see.
-    pub sky: &'a crate::sky::Sky,
+    pub sky: &'a crate::light::sky::Sky,
     /// The boxes the scene places (empty: one box over the scene).
     pub specs: &'a [VolumeSpec],
 }

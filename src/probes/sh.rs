@@ -73,7 +73,7 @@ pub fn ambient_cube(sh: &Sh9) -> [Vec3; 6] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampling::Stream;
+    use crate::util::sampling::Stream;
 
     fn random_dir(rng: &mut Stream) -> Vec3 {
         let u = rng.next_vec2();

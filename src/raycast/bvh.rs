@@ -1054,7 +1054,7 @@ impl<F: Fn(u32, f32, f32) -> bool> Visitor for AnyHit<F> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampling::Stream;
+    use crate::util::sampling::Stream;
 
     /// obvhs's BVH2 over `n` random triangles, as `RayCaster` builds it,
     /// and the triangles.

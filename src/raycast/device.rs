@@ -7,7 +7,7 @@ use super::batch::BatchCaster;
 #[cfg(feature = "gpu")]
 use super::gpu::GpuBatches;
 use super::RayCaster;
-use crate::geometry::Geometry;
+use crate::layout::geometry::Geometry;
 use crate::scene::Scene;
 
 /// The batch caster of `device = "gpu"` over `geometry` (cut-out hits

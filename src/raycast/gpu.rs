@@ -13,7 +13,7 @@
 
 use super::batch::{batch_ranges, generate_rays, BatchCaster, Consume, Generate};
 use super::{Hit, RayCaster};
-use crate::geometry::Geometry;
+use crate::layout::geometry::Geometry;
 use crate::scene::{Alpha, Scene};
 use anyhow::{anyhow, bail, Context as _, Result};
 use bytemuck::{Pod, Zeroable};
@@ -101,7 +101,7 @@ impl GpuRayCaster {
         if geometry.is_empty() || casters.is_some_and(|c| c.is_empty()) {
             bail!("no triangles");
         }
-        let (adapter, device, queue) = crate::adapter::offscreen_device()?;
+        let (adapter, device, queue) = crate::util::adapter::offscreen_device()?;
         let (nodes, ids) = gpu_bvh(geometry, casters)?;
         let gpu_tris = gpu_triangles(geometry, &ids);
         let (pipeline, layout) = pipeline(&device)?;
@@ -116,7 +116,7 @@ impl GpuRayCaster {
             usage: wgpu::BufferUsages::STORAGE,
         });
         Ok(GpuRayCaster {
-            adapter: crate::adapter::describe(&adapter),
+            adapter: crate::util::adapter::describe(&adapter),
             device,
             queue,
             pipeline,

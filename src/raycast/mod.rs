@@ -12,7 +12,7 @@ pub mod gpu;
 
 pub use bvh::BvhStats;
 
-use crate::geometry::Geometry;
+use crate::layout::geometry::Geometry;
 use crate::scene::{Alpha, Scene, Texture, TextureRef};
 use bvh::Bvh4;
 #[cfg(target_arch = "x86_64")]
@@ -342,7 +342,7 @@ impl RayCaster {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampling::Stream;
+    use crate::util::sampling::Stream;
 
     fn random_geometry(n: usize, seed: u64) -> Geometry {
         let mut s = Stream::new(seed, 0, 0);

@@ -386,11 +386,13 @@ fn import_nodes(
         let extras = radbake_extras(ctx, &node, &location)?;
         scene.warnings.extend(extras.unknown.iter().cloned());
         if let Some(spacing) = extras.probe_volume {
-            scene.probe_volumes.push(crate::probes::VolumeSpec {
-                name: node_name.clone(),
-                world_from_box: world,
-                spacing,
-            });
+            scene
+                .probe_volumes
+                .push(crate::scene::probe_volume::VolumeSpec {
+                    name: node_name.clone(),
+                    world_from_box: world,
+                    spacing,
+                });
         }
         let at = NodeAt {
             node: &node,

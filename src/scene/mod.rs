@@ -6,9 +6,12 @@
 //! light intensity is W/sr (≙ cd); directional light intensity is W/m² (≙ lux).
 
 mod gltf;
+pub mod light_modes;
+pub mod probe_volume;
 pub mod texture;
 
 pub use self::gltf::{load, LoadOptions};
+pub use crate::config::LightMode;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 pub use texture::{Filter, Filters, Mips, Texture, TextureRef, Wrap};
 
@@ -194,71 +197,6 @@ pub enum LightKind {
     },
 }
 
-/// What a light contributes to the bake (per light: the node's
-/// `extras.radbake.mode`, config defaults per type, `--light-mode`), as
-/// Unity's Baked / Mixed / Realtime light modes:
-///
-/// | mode | lightmap | probes | the engine draws |
-/// |---|---|---|---|
-/// | `baked` | direct + bounced | direct + bounced | nothing (the bake has it all) |
-/// | `indirect` | bounced only | bounced only | the direct light, with its real-time shadows |
-/// | `shadowmask` | bounced only, plus its occlusion in a shadowmask channel | bounced only | the direct light × the shadowmask |
-/// | `realtime` | nothing | nothing | everything (the light is not baked) |
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    serde::Serialize,
-    serde::Deserialize,
-    clap::ValueEnum,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum LightMode {
-    /// Direct and bounced light in the lightmap and the probes.
-    #[default]
-    Baked,
-    /// Only the bounced light; the engine draws the direct light in real time.
-    Indirect,
-    /// As `indirect`, plus the light's occlusion in a shadowmask channel.
-    Shadowmask,
-    /// Not baked at all.
-    Realtime,
-}
-
-impl LightMode {
-    /// The name used in glTF extras, config and the CLI.
-    pub fn name(self) -> &'static str {
-        match self {
-            LightMode::Baked => "baked",
-            LightMode::Indirect => "indirect",
-            LightMode::Shadowmask => "shadowmask",
-            LightMode::Realtime => "realtime",
-        }
-    }
-
-    /// Every mode, in the order of the table above.
-    pub const ALL: [LightMode; 4] = [
-        LightMode::Baked,
-        LightMode::Indirect,
-        LightMode::Shadowmask,
-        LightMode::Realtime,
-    ];
-
-    /// Parses a mode name (one of [`LightMode::ALL`]'s names).
-    pub fn parse(name: &str) -> Option<LightMode> {
-        LightMode::ALL.into_iter().find(|m| m.name() == name)
-    }
-
-    /// True for a light whose direct light the bake leaves to the engine
-    /// but whose bounced light it bakes (`indirect`, `shadowmask`).
-    pub fn is_mixed(self) -> bool {
-        matches!(self, LightMode::Indirect | LightMode::Shadowmask)
-    }
-}
-
 /// A punctual light placed in the world.
 #[derive(Clone, Debug)]
 pub struct Light {
@@ -386,7 +324,7 @@ pub struct Scene {
     /// bake (no lightmap, no shadow), lit by the probes.
     pub dynamic: Vec<Instance>,
     /// Probe boxes placed as nodes with `extras.radbake.probe_volume`.
-    pub probe_volumes: Vec<crate::probes::VolumeSpec>,
+    pub probe_volumes: Vec<crate::scene::probe_volume::VolumeSpec>,
     /// Materials; the last one may be [`Material::fallback`].
     pub materials: Vec<Material>,
     /// Decoded textures.

@@ -7,10 +7,10 @@
 //! `examples/sdf_agreement.rs`.
 
 use super::Sdf;
-use crate::geometry::Geometry;
+use crate::layout::geometry::Geometry;
 use crate::raycast::RayCaster;
-use crate::sampling::{cosine_hemisphere, to_world, Stream};
 use crate::scene::{Alpha, Scene};
+use crate::util::sampling::{cosine_hemisphere, to_world, Stream};
 use glam::Vec3;
 
 /// Why a marched ray and the BVH's disagree.

@@ -15,9 +15,9 @@
 //! [`supports`]).
 
 use super::Tracer;
-use crate::direct::punctual_irradiance;
-use crate::sampling::{cosine_hemisphere, offset_ray_origin, shadow_ray, to_world, Stream};
+use crate::light::lights::punctual_irradiance;
 use crate::scene::{LightKind, Specular};
+use crate::util::sampling::{cosine_hemisphere, offset_ray_origin, shadow_ray, to_world, Stream};
 use glam::Vec3;
 use std::f32::consts::PI;
 

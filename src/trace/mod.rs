@@ -19,23 +19,19 @@
 //! with Russian roulette), or, in final-pass mode, E + ρ × the lightmap.
 
 pub mod bdpt;
+pub mod measure;
+pub mod photon;
+pub mod reference;
 pub mod render;
 pub mod sphere;
 pub mod view;
 
-use crate::direct::{extent_sample, punctual_irradiance, punctual_unoccluded, Lights};
-use crate::geometry::Geometry;
+use crate::layout::geometry::Geometry;
+use crate::light::lights::{extent_sample, punctual_irradiance, punctual_unoccluded, Lights};
 use crate::raycast::RayCaster;
-use crate::sampling::{
-    cosine_hemisphere, offset_ray_origin, shadow_ray, stratified, to_world, Stream,
-};
 use crate::scene::{Scene, Specular};
-use crate::texels::Texels;
+use crate::util::sampling::{cosine_hemisphere, offset_ray_origin, shadow_ray, to_world, Stream};
 use glam::{Vec2, Vec3};
-use rayon::prelude::*;
-
-/// Stream purpose id of reference-texel paths.
-const PURPOSE_TEXELS: u64 = 5;
 
 /// Longest chain of specular bounces followed before a path is cut (a
 /// faceted glass sphere traps a few per cent of paths for over 16).
@@ -138,7 +134,7 @@ impl<'a> Tracer<'a> {
         scene: &'a Scene,
         geometry: &'a Geometry,
         rays: &'a RayCaster,
-        sky: impl Into<crate::sky::Sky>,
+        sky: impl Into<crate::light::sky::Sky>,
     ) -> Self {
         let all = vec![true; scene.materials.len()];
         Tracer {
@@ -415,49 +411,6 @@ fn fresnel_dielectric(cos_i: f32, cos_t: f32, eta: f32) -> f32 {
     let rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     let rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     0.5 * (rs * rs + rp * rp)
-}
-
-/// Reference lightmap texels: each texel's H/π by path tracing from
-/// `samples` stratified points over it (`sample_texel(t, jitter, rng)`:
-/// uniform over the texel's world area, all its pieces, so the estimate is
-/// the exact texel mean), independent of patches and form factors. A texel whose first rays hit back faces more than
-/// [`crate::gather::BACKFACE_TOLERANCE`] of the time is marked invalid, as
-/// in the final gather. Returns (values, validity, rays' paths started).
-pub fn reference_texels(
-    tracer: &Tracer,
-    texels: &Texels,
-    sample_texel: &(dyn Fn(u32, Vec2, &mut Stream) -> (Vec3, Vec3) + Sync),
-    samples: u32,
-    seed: u64,
-    advance: &(dyn Fn(u64) + Sync),
-) -> (Vec<Vec3>, Vec<bool>) {
-    let n = texels.len();
-    let chunk = 64;
-    let parts: Vec<Vec<(Vec3, bool)>> = (0..n.div_ceil(chunk))
-        .into_par_iter()
-        .map(|c| {
-            let range = c * chunk..((c + 1) * chunk).min(n);
-            let out: Vec<(Vec3, bool)> = range
-                .map(|t| {
-                    let mut rng = Stream::new(seed, PURPOSE_TEXELS, t as u64);
-                    let mut sum = Vec3::ZERO;
-                    let mut back = 0u32;
-                    for k in 0..samples {
-                        let jitter = stratified(k, samples, rng.next_vec2());
-                        let (p, ng) = sample_texel(t as u32, jitter, &mut rng);
-                        let (h, b) = tracer.incident(p, ng, &mut rng, 0);
-                        sum += h;
-                        back += b as u32;
-                    }
-                    let valid = back as f32 <= crate::gather::BACKFACE_TOLERANCE * samples as f32;
-                    (sum / samples.max(1) as f32, valid)
-                })
-                .collect();
-            advance(out.len() as u64);
-            out
-        })
-        .collect();
-    parts.into_iter().flatten().unzip()
 }
 
 #[cfg(test)]

@@ -7,9 +7,9 @@
 pub use super::view::View;
 use super::Tracer;
 use crate::error::Result;
-use crate::geometry::Geometry;
-use crate::sampling::{stratified, Stream};
+use crate::layout::geometry::Geometry;
 use crate::scene::texture::linear_to_srgb;
+use crate::util::sampling::{stratified, Stream};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::path::Path;
@@ -57,7 +57,7 @@ impl Image {
     /// # Errors
     /// [`crate::Error::Encode`] or [`crate::Error::Io`].
     pub fn write_exr(&self, path: &Path) -> Result<()> {
-        crate::output::write_exr_rgb(path, self.width, self.height, &self.pixels)
+        crate::util::files::write_exr_rgb(path, self.width, self.height, &self.pixels)
     }
 
     /// Writes an 8-bit sRGB PNG, exposed by 2^`exposure_ev` and tone-mapped
@@ -76,7 +76,7 @@ impl Image {
             let c = |c: f32| (linear_to_srgb(aces(c)) * 255.0 + 0.5) as u8;
             image::Rgb([c(v.x), c(v.y), c(v.z)])
         });
-        crate::output::write_png(path, &img)
+        crate::util::files::write_png(path, &img)
     }
 }
 
@@ -120,7 +120,7 @@ pub fn load_bake(scene: &crate::scene::Scene, dir: &Path) -> Result<BakedLightma
         serde_json::from_str(&text).map_err(|e| invalid("report.json", e.to_string()))?;
     let config: crate::BakeConfig = serde_json::from_value(report["settings"].clone())
         .map_err(|e| invalid("settings", e.to_string()))?;
-    let atlas = crate::atlas::unwrap(scene, &config)?;
+    let atlas = crate::layout::atlas::unwrap(scene, &config)?;
     let geometry = Geometry::new(scene, &atlas);
     let mut pages = Vec::new();
     for page in 0..atlas.page_count {

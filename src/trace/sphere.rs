@@ -16,7 +16,7 @@
 
 use super::render::{Image, View};
 use super::Tracer;
-use crate::direct::punctual_irradiance;
+use crate::light::lights::punctual_irradiance;
 use crate::scene::LightMode;
 use crate::sdf::Sdf;
 use glam::Vec3;

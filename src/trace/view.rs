@@ -2,7 +2,7 @@
 //! tracer and BDPT): from a glTF camera, a look-at, or a framing of the
 //! scene.
 
-use crate::geometry::Geometry;
+use crate::layout::geometry::Geometry;
 use crate::scene::Camera;
 use glam::{Vec2, Vec3};
 

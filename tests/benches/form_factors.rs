@@ -7,7 +7,7 @@
 mod common;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use radbake::form_factors::{hemicube, raycast};
+use radbake::radiosity::form_factors::{hemicube, raycast};
 use radbake::raycast::RayCaster;
 
 fn form_factors(c: &mut Criterion) {

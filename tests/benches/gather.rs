@@ -7,8 +7,10 @@ mod common;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
+use radbake::light::lights;
+use radbake::maps::lightmap;
+use radbake::radiosity::gather;
 use radbake::raycast::RayCaster;
-use radbake::{direct, gather, lightmap};
 
 fn final_gather(c: &mut Criterion) {
     let scene = common::cornell();
@@ -30,16 +32,17 @@ fn final_gather(c: &mut Criterion) {
         &bake.transport.direct,
         &indirect,
     );
-    let sampled = radbake::direct::sampled_materials(&scene, &bake.geometry, bake.config.emitters);
+    let sampled =
+        radbake::light::lights::sampled_materials(&scene, &bake.geometry, bake.config.emitters);
     // As the bake does: the gather rays also estimate the direct light's
     // hemisphere part (sky, emitters by MIS).
-    let lights = direct::Lights::new(
+    let lights = lights::Lights::new(
         &scene,
         &bake.geometry,
         &sampled,
         Vec3::from(bake.config.sky),
     );
-    let mis = direct::Mis {
+    let mis = lights::Mis {
         light: bake.config.direct_samples,
         hemisphere: bake.config.final_gather,
     };

@@ -7,8 +7,8 @@
 mod common;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use radbake::form_factors::rows::StoredColumns;
-use radbake::solve::{jacobi, progressive, System};
+use radbake::radiosity::form_factors::rows::StoredColumns;
+use radbake::radiosity::solve::{jacobi, progressive, System};
 
 fn solve(c: &mut Criterion) {
     let scene = common::cornell();

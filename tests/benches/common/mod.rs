@@ -6,9 +6,9 @@
 pub mod level;
 
 use glam::{Vec2, Vec3};
-use radbake::geometry::Geometry;
-use radbake::sampling::{cosine_hemisphere, offset_ray_origin, to_world, Stream};
+use radbake::layout::geometry::Geometry;
 use radbake::scene::Scene;
+use radbake::util::sampling::{cosine_hemisphere, offset_ray_origin, to_world, Stream};
 use std::path::{Path, PathBuf};
 
 /// The seed of every benchmark's random sequence.
@@ -191,7 +191,7 @@ pub fn cornell_bake(scene: &Scene) -> radbake::Bake<'_> {
 /// light are left out, as `radbake::bake` does).
 pub fn solve_emission(bake: &radbake::Bake) -> Vec<Vec3> {
     let sampled =
-        radbake::direct::sampled_materials(bake.scene, &bake.geometry, bake.config.emitters);
+        radbake::light::lights::sampled_materials(bake.scene, &bake.geometry, bake.config.emitters);
     (0..bake.patches.len())
         .map(|i| {
             let t = bake.patches.texels_of(i)[0] as usize;

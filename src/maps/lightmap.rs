@@ -1,0 +1,238 @@
+//! Stage 7 — lightmap pages from the patch solution. Each texel's value is
+//! H = incident irradiance / π = its own direct light (sampled per texel,
+//! sharp) + the indirect light of the patches, bilinearly interpolated
+//! between the centres of the four nearest patch blocks of the same region
+//! (chart, cut by walls: see [`crate::surface::burial`])
+//! (missing blocks drop out and the weights are renormalised), so patches do
+//! not show as blocks.
+//! Empty texels around charts are then filled by dilation, ring by ring, so
+//! bilinear filtering and mipmaps never fetch black.
+
+use crate::layout::patches::Patches;
+use crate::layout::texels::Texels;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+/// Lightmap pages of linear RGB (irradiance / π).
+#[derive(Clone, Debug, Default)]
+pub struct Lightmaps {
+    /// Page width.
+    pub width: u32,
+    /// Page height.
+    pub height: u32,
+    /// Row-major RGB values per page.
+    pub pages: Vec<Vec<Vec3>>,
+    /// Value of each covered texel (indexed by texel id), before dilation.
+    pub texel_values: Vec<Vec3>,
+}
+
+/// Every texel's value interpolated from per-patch values, then shifted per
+/// patch so the area-weighted mean over a patch's texels equals the patch's
+/// value: interpolation moves light around within a patch but neither makes
+/// nor loses any (clamped at 0).
+pub fn interpolate(texels: &Texels, patches: &Patches, patch_values: &[Vec3]) -> Vec<Vec3> {
+    let mut values = interpolate_bilinear(texels, patches, patch_values);
+    for (i, target) in patch_values.iter().enumerate() {
+        let ids = patches.texels_of(i);
+        let mean: Vec3 = ids
+            .iter()
+            .map(|&t| values[t as usize] * texels.area[t as usize])
+            .sum::<Vec3>()
+            / patches.area[i];
+        let shift = *target - mean;
+        for &t in ids {
+            values[t as usize] = (values[t as usize] + shift).max(Vec3::ZERO);
+        }
+    }
+    values
+}
+
+fn interpolate_bilinear(texels: &Texels, patches: &Patches, patch_values: &[Vec3]) -> Vec<Vec3> {
+    let k = patches.block as f32;
+    (0..texels.len())
+        .into_par_iter()
+        .map(|t| {
+            let [x, y] = texels.xy[t];
+            let inst = texels.instance[t];
+            // The texel's region (its patch's key): blocks across a wall
+            // are other regions' and drop out.
+            let region = patches.key[patches.of_texel[t].0 as usize].1;
+            let f = (Vec2::new(x as f32, y as f32) + 0.5) / k - 0.5;
+            let b0 = f.floor();
+            let w = f - b0;
+            let (mut acc, mut wsum) = (Vec3::ZERO, 0.0f32);
+            for (dx, dy, wt) in [
+                (0, 0, (1.0 - w.x) * (1.0 - w.y)),
+                (1, 0, w.x * (1.0 - w.y)),
+                (0, 1, (1.0 - w.x) * w.y),
+                (1, 1, w.x * w.y),
+            ] {
+                let bx = b0.x as i64 + dx;
+                let by = b0.y as i64 + dy;
+                if bx < 0 || by < 0 || wt <= 0.0 {
+                    continue;
+                }
+                if let Some(p) = patches.by_key.get(&(inst, region, bx as u32, by as u32)) {
+                    acc += patch_values[p.0 as usize] * wt;
+                    wsum += wt;
+                }
+            }
+            if wsum > 0.0 {
+                acc / wsum
+            } else {
+                patch_values[patches.of_texel[t].0 as usize]
+            }
+        })
+        .collect()
+}
+
+/// Fills `rings` rings of empty texels around covered ones with the mean of
+/// their covered (or already filled) 8-neighbours.
+pub fn dilate(values: &mut [Vec3], filled: &mut [bool], width: u32, height: u32, rings: u32) {
+    let (w, h) = (width as i64, height as i64);
+    for _ in 0..rings {
+        let mut updates: Vec<(usize, Vec3)> = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) as usize;
+                if filled[i] {
+                    continue;
+                }
+                let (mut acc, mut n) = (Vec3::ZERO, 0);
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let (nx, ny) = (x + dx, y + dy);
+                        if nx >= 0 && ny >= 0 && nx < w && ny < h && filled[(ny * w + nx) as usize]
+                        {
+                            acc += values[(ny * w + nx) as usize];
+                            n += 1;
+                        }
+                    }
+                }
+                if n > 0 {
+                    updates.push((i, acc / n as f32));
+                }
+            }
+        }
+        if updates.is_empty() {
+            break;
+        }
+        for (i, v) in updates {
+            values[i] = v;
+            filled[i] = true;
+        }
+    }
+}
+
+/// The first-pass value of every texel: its direct light plus the patches'
+/// indirect light interpolated (see [`interpolate`]).
+pub fn first_pass(
+    texels: &Texels,
+    patches: &Patches,
+    direct: &[Vec3],
+    indirect: &[Vec3],
+) -> Vec<Vec3> {
+    let mut values = interpolate(texels, patches, indirect);
+    for (v, d) in values.iter_mut().zip(direct) {
+        *v += *d;
+    }
+    values
+}
+
+/// Rings of neighbours an invalid texel is filled from ([`fill_invalid`]):
+/// four patches' width (patches of `patch_texels`²), at least 16 texels.
+pub fn fill_rings(patch_texels: u32) -> u32 {
+    4 * patch_texels.max(4)
+}
+
+/// Replaces every invalid texel (see `gather`'s texel validity) by the mean
+/// of its valid 8-neighbours of the same instance and chart, ring by ring
+/// (up to `rings`), so light from inside walls never shows; an invalid texel
+/// with no valid texel of its chart nearby keeps its own value.
+pub fn fill_invalid(texels: &Texels, values: &mut [Vec3], valid: &[bool], rings: u32) {
+    let mut ok = valid.to_vec();
+    for _ in 0..rings {
+        let mut updates: Vec<(usize, Vec3)> = Vec::new();
+        for t in 0..texels.len() {
+            if ok[t] {
+                continue;
+            }
+            let [x, y] = texels.xy[t];
+            let (mut acc, mut n) = (Vec3::ZERO, 0);
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    if let Some(u) = texels.at(texels.page[t], x as i64 + dx, y as i64 + dy) {
+                        let u = u as usize;
+                        if ok[u]
+                            && texels.instance[u] == texels.instance[t]
+                            && texels.chart[u] == texels.chart[t]
+                        {
+                            acc += values[u];
+                            n += 1;
+                        }
+                    }
+                }
+            }
+            if n > 0 {
+                updates.push((t, acc / n as f32));
+            }
+        }
+        if updates.is_empty() {
+            break;
+        }
+        for (t, v) in updates {
+            values[t] = v;
+            ok[t] = true;
+        }
+    }
+}
+
+/// Builds the pages from final per-texel values, then `dilate_rings` of
+/// dilation into the padding.
+pub fn build(
+    texels: &Texels,
+    texel_values: Vec<Vec3>,
+    page_count: u32,
+    dilate_rings: u32,
+) -> Lightmaps {
+    let (w, h) = (texels.width, texels.height);
+    let pages = (0..page_count.max(1))
+        .map(|p| {
+            let mut values = vec![Vec3::ZERO; (w * h) as usize];
+            let mut filled = vec![false; (w * h) as usize];
+            for (i, &e) in texels.index[p as usize].iter().enumerate() {
+                if e != crate::layout::texels::EMPTY_ENTRY {
+                    values[i] = texel_values[e as u32 as usize];
+                    filled[i] = true;
+                }
+            }
+            dilate(&mut values, &mut filled, w, h, dilate_rings);
+            values
+        })
+        .collect();
+    Lightmaps {
+        width: w,
+        height: h,
+        pages,
+        texel_values,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dilation_fills_rings() {
+        let (w, h) = (5, 5);
+        let mut v = vec![Vec3::ZERO; 25];
+        let mut f = vec![false; 25];
+        v[12] = Vec3::ONE;
+        f[12] = true;
+        dilate(&mut v, &mut f, w, h, 1);
+        assert!(f[6] && f[18] && !f[0]);
+        assert_eq!(v[6], Vec3::ONE);
+        dilate(&mut v, &mut f, w, h, 1);
+        assert!(f.iter().all(|&x| x));
+    }
+}
