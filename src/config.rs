@@ -5,7 +5,8 @@ use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// Where the lightmap UVs come from.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum UvSource {
     /// Unwrap every mesh with `uvunwrap`.
@@ -15,7 +16,8 @@ pub enum UvSource {
 }
 
 /// How the unwrapper packs charts into the atlas.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Packing {
     /// Rows of charts pushed together by their per-row and per-column
@@ -29,7 +31,8 @@ pub enum Packing {
 }
 
 /// How form factors are computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum FormFactorMethod {
     /// Cosine-distributed rays from each patch (Wallace et al. 1989 style Monte Carlo).
@@ -39,14 +42,15 @@ pub enum FormFactorMethod {
 }
 
 /// How the radiosity system is solved.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Solver {
     /// Jacobi iteration on the stored sparse F.
     Jacobi,
     /// Gauss–Seidel iteration on the stored sparse F.
     #[serde(rename = "gauss-seidel")]
-    #[value(name = "gauss-seidel")]
+    #[cfg_attr(feature = "cli", value(name = "gauss-seidel"))]
     GaussSeidel,
     /// Progressive refinement: shooting, rows computed on demand, O(n) memory.
     Progressive,
@@ -55,7 +59,8 @@ pub enum Solver {
 }
 
 /// How emissive surfaces light the scene.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum EmitterSampling {
     /// `direct` for emissive materials covering at most 2 % of the scene's
@@ -68,7 +73,8 @@ pub enum EmitterSampling {
 }
 
 /// Directional lightmaps.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum DirectionalMode {
     /// None.
@@ -78,7 +84,8 @@ pub enum DirectionalMode {
 }
 
 /// The HDR lightmap pages written as KTX2 (what Bevy loads).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Ktx2Mode {
     /// `lightmap_<page>.ktx2` in `E5B9G9R9_UFLOAT_PACK32`, Zstandard
@@ -105,7 +112,8 @@ impl Ktx2Mode {
 
 /// The texel format of the signed distance field's KTX2 file
 /// ([`crate::output::sdf`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase", try_from = "String")]
 pub enum SdfFormat {
     /// `R16_SFLOAT`: half floats, within 2⁻¹¹ of each distance (a
@@ -142,7 +150,8 @@ impl TryFrom<String> for SdfFormat {
 }
 
 /// What the signed distance field's grid covers ([`crate::sdf::bounds`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(try_from = "String")]
 pub enum SdfBounds {
     /// The scene's bounds: every triangle.
@@ -153,7 +162,7 @@ pub enum SdfBounds {
     /// `extras.radbake.probe_volume`), where dynamic objects go: the same
     /// voxels over less space. Distances still measure to every triangle.
     #[serde(rename = "probe-volumes")]
-    #[value(name = "probe-volumes")]
+    #[cfg_attr(feature = "cli", value(name = "probe-volumes"))]
     ProbeVolumes,
 }
 
@@ -183,7 +192,8 @@ impl TryFrom<String> for SdfBounds {
 }
 
 /// How texel values are computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// Radiosity (form factors, solve, final gather): the baker.
@@ -195,7 +205,8 @@ pub enum Method {
 }
 
 /// Where the rays of the form factors are cast.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Device {
     /// CPU threads (radbake's SIMD BVH4).
@@ -205,7 +216,8 @@ pub enum Device {
 }
 
 /// Named starting points for the settings.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// [`BakeConfig::preview`].
@@ -357,17 +369,8 @@ pub struct BakeConfig {
 /// | `indirect` | bounced only | bounced only | the direct light, with its real-time shadows |
 /// | `shadowmask` | bounced only, plus its occlusion in a shadowmask channel | bounced only | the direct light × the shadowmask |
 /// | `realtime` | nothing | nothing | everything (the light is not baked) |
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    serde::Serialize,
-    serde::Deserialize,
-    clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum LightMode {
     /// Direct and bounced light in the lightmap and the probes.

@@ -74,6 +74,22 @@ pub enum Error {
         /// What is wrong with it.
         message: String,
     },
+    /// A file a bake wrote (probes, say) that is read back is malformed.
+    #[error("{path}: {message}")]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// No usable graphics adapter (GPU or software): callers may treat this
+    /// as "cannot run here" rather than as a failure.
+    #[error("no graphics adapter: {0}")]
+    NoAdapter(String),
+    /// The GPU, its driver or a shader failed; a bake falls back to the CPU
+    /// with a warning in `report.json`.
+    #[error("{0}")]
+    Device(String),
     /// Not a failure: a shard job wrote its part and stops there
     /// ([`crate::pipeline::shard::Sharding::checkpoint`]).
     #[error("this shard's part is written")]
@@ -92,9 +108,26 @@ impl Error {
                 | Error::Empty { .. }
                 | Error::Config { .. }
                 | Error::Limit(_)
+                | Error::Malformed { .. }
         )
     }
 }
+
+/// [`Error::Device`] from a format string.
+macro_rules! device_error {
+    ($($t:tt)*) => {
+        $crate::Error::Device(format!($($t)*))
+    };
+}
+pub(crate) use device_error;
+
+/// Return [`Error::Device`] from a format string.
+macro_rules! device_bail {
+    ($($t:tt)*) => {
+        return Err($crate::error::device_error!($($t)*))
+    };
+}
+pub(crate) use device_bail;
 
 /// Result with the crate's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -51,6 +51,9 @@ const LAYERS: &[(&str, &[&str])] = &[
 /// Files that may name the command-line-only crates.
 const CLI_ONLY: &[&str] = &["main.rs", "cli/"];
 const CLI_CRATES: &[&str] = &["anyhow", "clap", "indicatif", "ctrlc", "tokio", "hyper"];
+/// The interactive viewer (feature `preview`) reports its errors with
+/// `anyhow` too; no other library file does.
+const ANYHOW_TOO: &[&str] = &["preview/"];
 
 fn src_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("src")
@@ -370,6 +373,31 @@ fn parse(rel: &str, text: &str) -> SourceFile {
             }
         }
         if let Tok::Ident(kw) = tok {
+            // `#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]`: a
+            // crate named only behind a feature (`command_line_crates_are_optional`
+            // checks that those crates come only with the `cli` feature).
+            if kw == "cfg_attr"
+                && toks.get(i + 1).map(|t| &t.0) == Some(&Tok::Punct('('))
+                && matches!(toks.get(i + 2).map(|t| &t.0), Some(Tok::Ident(f)) if f == "feature")
+            {
+                let mut open = 0usize;
+                let mut j = i + 1;
+                while j < toks.len() {
+                    match toks[j].0 {
+                        Tok::Punct('(') => open += 1,
+                        Tok::Punct(')') => {
+                            open -= 1;
+                            if open == 0 {
+                                break;
+                            }
+                        }
+                        _ => {}
+                    }
+                    j += 1;
+                }
+                i = j + 1;
+                continue;
+            }
             if kw == "use" {
                 let public = i > 0 && matches!(&toks[i - 1].0, Tok::Ident(p) if p == "pub")
                     || i > 3
@@ -745,8 +773,10 @@ fn command_line_crates_only_in_the_binary() {
         let cli = CLI_ONLY
             .iter()
             .any(|p| f.rel == *p || (p.ends_with('/') && f.rel.starts_with(p)));
+        let viewer = ANYHOW_TOO.iter().any(|p| f.rel.starts_with(p));
         for c in CLI_CRATES {
-            if !cli && f.externs.contains(*c) {
+            let allowed = cli || (viewer && *c == "anyhow");
+            if !allowed && f.externs.contains(*c) {
                 bad.push(format!("{} uses {c}", f.rel));
             }
         }
@@ -756,6 +786,47 @@ fn command_line_crates_only_in_the_binary() {
         "command-line crates outside src/main.rs and src/cli/:\n{}",
         bad.join("\n")
     );
+}
+
+/// The command-line crates are optional dependencies that only the `cli`
+/// feature (and, for `anyhow`, `preview`) brings, so a build tool that
+/// depends on `radbake` with `default-features = false` compiles none of
+/// them.
+#[test]
+fn command_line_crates_are_optional() {
+    let toml = fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml"))
+        .expect("Cargo.toml");
+    let deps = section(&toml, "[dependencies]");
+    let features = section(&toml, "[features]");
+    let mut bad = Vec::new();
+    for c in CLI_CRATES {
+        let line = deps
+            .lines()
+            .find(|l| l.starts_with(&format!("{c} ")) || l.starts_with(&format!("{c}=")));
+        match line {
+            Some(l) if l.contains("optional = true") => {}
+            Some(l) => bad.push(format!("{c} is not optional: {l}")),
+            None => bad.push(format!("{c} is not in [dependencies]")),
+        }
+        let dep = format!("\"dep:{c}\"");
+        for f in features.lines().filter(|l| l.contains(" = [")) {
+            let name = f.split(" = ").next().unwrap_or("").trim();
+            let brought = f.contains(&dep);
+            if brought && name != "cli" && !(name == "preview" && *c == "anyhow") {
+                bad.push(format!("feature {name} brings {c}"));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// The text of a Cargo.toml section, up to the next `[` header.
+fn section<'a>(toml: &'a str, header: &str) -> &'a str {
+    let Some(start) = toml.find(&format!("\n{header}\n")) else {
+        return "";
+    };
+    let body = &toml[start + header.len() + 2..];
+    &body[..body.find("\n[").map_or(body.len(), |e| e + 1)]
 }
 
 #[test]
@@ -779,10 +850,15 @@ fn the_meter_shares_no_bake_code() {
             }
         }
     }
+    // The meter shares the scene, the world triangles, the ray caster and
+    // the light-sampling library with the path tracer it runs on; it must
+    // not reach the texels, patches, burial, surfaces or any light stage.
     let forbidden = [
-        "layout/",
+        "layout/texels.rs",
+        "layout/patches.rs",
+        "layout/burial.rs",
         "surface/",
-        "light/",
+        "light/direct.rs",
         "radiosity/",
         "maps/",
         "probes/",

@@ -5,6 +5,7 @@
 //! Exit codes: 0 success (or already up to date), 1 bad input (scene or
 //! settings), 2 usage error, 3 I/O or internal error.
 
+pub mod app;
 pub mod bake;
 pub mod measure;
 #[cfg(feature = "preview")]

@@ -159,7 +159,7 @@ const WORKERS: usize = 4;
 /// together, each was queued while the pool's count of idle threads was
 /// stale, one idle thread took the first, and the rest waited until some
 /// keep-alive connection closed. A page's module loads stalled that way
-/// (CI at stop 37, 2 of 9 runs of the browser tests at stop 38); 8
+/// (2 of 9 runs of the browser tests in CI); 8
 /// simultaneous keep-alive connections with both cores busy were left
 /// unanswered in 3 of 10 rounds.
 fn serve(listener: std::net::TcpListener, dir: &Path, limit: Option<u64>) -> std::io::Result<()> {

@@ -1,4 +1,4 @@
-//! Stage 2 — the lightmap atlas (the only file that uses `uvunwrap`).
+//! The lightmap atlas (the only file that uses `uvunwrap`).
 //!
 //! Each scene mesh is unwrapped once (charts never span two materials) and
 //! every instance of it gets its own rectangle at a fixed texel density,

@@ -1,4 +1,4 @@
-//! Stage 4 — patches: texels grouped into k×k blocks of the atlas, never
+//! Patches: texels grouped into k×k blocks of the atlas, never
 //! across two charts (hence never across two instances or materials, since
 //! charts never span materials). Each patch carries the area-weighted
 //! centroid, normal, albedo and emission of its texels and their total area,

@@ -1,4 +1,4 @@
-//! Stage 3 — lightmap texels: every triangle rasterised into the atlas
+//! Lightmap texels: every triangle rasterised into the atlas
 //! *exactly*: each texel square is clipped against the triangle
 //! (Sutherland–Hodgman), so a texel gets the world area it really covers,
 //! the area-weighted centroid as its position and the covering material's

@@ -1,4 +1,4 @@
-//! Stage 1b — the sky: what rays that leave the scene see. Either a uniform
+//! The sky: what rays that leave the scene see. Either a uniform
 //! colour or an HDRI environment ("sky map", `--sky-map env.exr|env.hdr`,
 //! turned by `--sky-rotation DEGREES`, scaled by `--sky-intensity`): an
 //! infinite area light (Pharr, Jakob & Humphreys, *Physically Based

@@ -1,4 +1,4 @@
-//! Stage 7 — lightmap pages from the patch solution. Each texel's value is
+//! Lightmap pages from the patch solution. Each texel's value is
 //! H = incident irradiance / π = its own direct light (sampled per texel,
 //! sharp) + the indirect light of the patches, bilinearly interpolated
 //! between the centres of the four nearest patch blocks of the same region

@@ -787,7 +787,7 @@ fn texel_sizes(s: &Surfaces, atlas: &Atlas) -> Vec<f32> {
 fn open_gpu_hemicubes(
     geometry: &crate::layout::geometry::Geometry,
     n: u32,
-) -> anyhow::Result<Box<dyn hemicube::RowBatches>> {
+) -> crate::Result<Box<dyn hemicube::RowBatches>> {
     #[cfg(feature = "gpu")]
     return Ok(Box::new(
         crate::radiosity::form_factors::gpu_hemicube::GpuHemicubes::new(geometry, n)?,
@@ -795,6 +795,6 @@ fn open_gpu_hemicubes(
     #[cfg(not(feature = "gpu"))]
     {
         let _ = (geometry, n);
-        anyhow::bail!("radbake was built without the `gpu` feature")
+        crate::error::device_bail!("radbake was built without the `gpu` feature")
     }
 }

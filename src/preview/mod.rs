@@ -42,7 +42,7 @@ pub mod renderer;
 pub mod watch;
 pub mod window;
 
-pub use crate::util::adapter::{describe, device, instance, offscreen_device, NoAdapter};
+pub use crate::util::adapter::{describe, device, instance, offscreen_device};
 pub use headless::{render_headless, write_png, Headless};
 pub use options::{initial_camera, Options, Settings, ToneMap, ViewMode, Viewpoint};
 

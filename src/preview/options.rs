@@ -8,7 +8,8 @@ use glam::Vec3;
 use std::path::PathBuf;
 
 /// What the fragment shader shows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[repr(u32)]
 pub enum ViewMode {
     /// Base colour × lightmap + emissive, tone mapped (dynamic nodes: base
@@ -70,7 +71,8 @@ impl ViewMode {
 }
 
 /// The tone map applied to HDR values.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[repr(u32)]
 pub enum ToneMap {
     /// ACES filmic (Stephen Hill's fit).

@@ -1,4 +1,4 @@
-//! Stage 7b — light probes for dynamic objects: regular grids of probes
+//! Light probes for dynamic objects: regular grids of probes
 //! ([`placement`]), each holding the incident radiance over its sphere as L2
 //! spherical harmonics ([`light`], [`sh`]); probes inside solids are found
 //! by back-face votes and filled from their neighbours ([`fill`]).
@@ -103,26 +103,35 @@ impl Probes {
     ///
     /// # Errors
     /// A one-line message naming the file and the problem.
-    pub fn read(json_path: &std::path::Path) -> anyhow::Result<Probes> {
-        use anyhow::{anyhow, bail, Context as _};
-        let name = json_path.display();
-        let text = std::fs::read(json_path).with_context(|| format!("cannot read {name}"))?;
+    pub fn read(json_path: &std::path::Path) -> crate::Result<Probes> {
+        use crate::Error;
+        let io = |path: &std::path::Path| {
+            let path = path.to_path_buf();
+            move |source| Error::Io { path, source }
+        };
+        let bad = |message: String| Error::Malformed {
+            path: json_path.to_path_buf(),
+            message,
+        };
+        let text = std::fs::read(json_path).map_err(io(json_path))?;
         let json: serde_json::Value =
-            serde_json::from_slice(&text).with_context(|| format!("{name}: not JSON"))?;
+            serde_json::from_slice(&text).map_err(|e| bad(format!("not JSON: {e}")))?;
         let count = json["probes"]
             .as_u64()
-            .ok_or_else(|| anyhow!("{name}: no probe count"))? as usize;
+            .ok_or_else(|| bad("no probe count".into()))? as usize;
         let bin_name = json["binary"].as_str().unwrap_or("probes.bin");
         let bin_path = json_path.with_file_name(bin_name);
-        let bin = std::fs::read(&bin_path)
-            .with_context(|| format!("cannot read {}", bin_path.display()))?;
+        let bin = std::fs::read(&bin_path).map_err(io(&bin_path))?;
         if bin.len() != count * 27 * 4 {
-            bail!(
-                "{}: {} bytes, but {name} says {count} probes ({} bytes)",
-                bin_path.display(),
-                bin.len(),
-                count * 108
-            );
+            return Err(Error::Malformed {
+                path: bin_path.clone(),
+                message: format!(
+                    "{} bytes, but {} says {count} probes ({} bytes)",
+                    bin.len(),
+                    json_path.display(),
+                    count * 108
+                ),
+            });
         }
         let f: Vec<f32> = bin
             .chunks_exact(4)
@@ -136,37 +145,37 @@ impl Probes {
         for i in json["invalid_probes"].as_array().into_iter().flatten() {
             match i.as_u64() {
                 Some(i) if (i as usize) < count => valid[i as usize] = false,
-                _ => bail!("{name}: invalid_probes holds {i}, not a probe index"),
+                _ => return Err(bad(format!("invalid_probes holds {i}, not a probe index"))),
             }
         }
         let mut volumes = Vec::new();
         for (k, v) in json["volumes"].as_array().into_iter().flatten().enumerate() {
-            let bad = || anyhow!("{name}: volumes[{k}] is malformed");
+            let malformed = || bad(format!("volumes[{k}] is malformed"));
             let m: Vec<f32> = v["world_from_box"]
                 .as_array()
-                .ok_or_else(bad)?
+                .ok_or_else(malformed)?
                 .iter()
                 .map(|x| x.as_f64().map(|x| x as f32))
                 .collect::<Option<_>>()
-                .ok_or_else(bad)?;
+                .ok_or_else(malformed)?;
             let r: Vec<u32> = v["resolution"]
                 .as_array()
-                .ok_or_else(bad)?
+                .ok_or_else(malformed)?
                 .iter()
                 .map(|x| x.as_u64().map(|x| x as u32))
                 .collect::<Option<_>>()
-                .ok_or_else(bad)?;
+                .ok_or_else(malformed)?;
             if m.len() != 16 || r.len() != 3 || r.contains(&0) {
-                return Err(bad());
+                return Err(malformed());
             }
             let vol = Volume {
                 name: v["name"].as_str().unwrap_or("").to_owned(),
                 world_from_box: glam::Mat4::from_cols_slice(&m),
                 resolution: glam::UVec3::new(r[0], r[1], r[2]),
-                first: v["first_probe"].as_u64().ok_or_else(bad)? as usize,
+                first: v["first_probe"].as_u64().ok_or_else(malformed)? as usize,
             };
             if vol.first + vol.len() > count {
-                bail!("{name}: volumes[{k}] runs past the {count} probes");
+                return Err(bad(format!("volumes[{k}] runs past the {count} probes")));
             }
             volumes.push(vol);
         }

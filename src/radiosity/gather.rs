@@ -707,7 +707,7 @@ impl<'a> Gatherer<'a> {
         &self,
         caster: &dyn BatchCaster,
         advance: &(dyn Fn(u64) + Sync),
-    ) -> anyhow::Result<Gathered> {
+    ) -> crate::Result<Gathered> {
         let n = self.s.texels.len();
         let per = self.rays_per_texel().max(1);
         let mut texels = Vec::with_capacity(n);

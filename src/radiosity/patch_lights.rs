@@ -1,4 +1,4 @@
-//! Stage 7b — patch lights: next-event estimation towards bright surfaces
+//! Patch lights: next-event estimation towards bright surfaces
 //! for the final gather, from the solved radiosity field (the "combined
 //! methods" of two-pass rendering: the first pass says where the light
 //! comes from, the second samples it there).

@@ -36,7 +36,7 @@ pub trait BatchCaster: Sync {
         per_item: usize,
         generate: &Generate,
         consume: &mut Consume,
-    ) -> anyhow::Result<()>;
+    ) -> crate::Result<()>;
 }
 
 /// [`BatchCaster`] on the CPU's [`RayCaster`], in batches of `batch`
@@ -60,7 +60,7 @@ impl BatchCaster for CpuBatches<'_> {
         per_item: usize,
         generate: &Generate,
         consume: &mut Consume,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         let per_item = per_item.max(1);
         for items in batch_ranges(count, self.batch) {
             let rays = generate_rays(items.clone(), per_item, generate);

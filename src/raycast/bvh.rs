@@ -52,7 +52,7 @@ pub(crate) struct Node<const W: usize> {
 /// per axis); unused lanes are zero and never hit. The normal is stored:
 /// computing it at each test instead (three cache lines a packet rather
 /// than four, `b52fe39`) measured 0.98 × on Sponza then, but 1.03–1.06 ×
-/// the time of storing it at stop 44 (farm-bench, 2 × 3 alternated
+/// the time of storing it later (two builds timed alternately, 2 × 3
 /// pairs; the Cornell gather's rays 0.93 × as fast), with the same hits.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]

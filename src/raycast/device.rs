@@ -20,12 +20,12 @@ pub fn gpu_batches<'a>(
     scene: &Scene,
     geometry: &Geometry,
     cpu: &'a RayCaster,
-) -> anyhow::Result<Box<dyn BatchCaster + 'a>> {
+) -> crate::Result<Box<dyn BatchCaster + 'a>> {
     #[cfg(feature = "gpu")]
     return Ok(Box::new(GpuBatches::new(scene, geometry, cpu)?));
     #[cfg(not(feature = "gpu"))]
     {
         let _ = (scene, geometry, cpu);
-        anyhow::bail!("radbake was built without the `gpu` feature")
+        crate::error::device_bail!("radbake was built without the `gpu` feature")
     }
 }

@@ -13,9 +13,10 @@
 
 use super::batch::{batch_ranges, generate_rays, BatchCaster, Consume, Generate};
 use super::{Hit, RayCaster};
+use crate::error::{device_bail, device_error};
 use crate::layout::geometry::Geometry;
 use crate::scene::{Alpha, Scene};
-use anyhow::{anyhow, bail, Context as _, Result};
+use crate::Result;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use obvhs::BvhBuildParams;
@@ -99,7 +100,7 @@ impl GpuRayCaster {
     /// As [`GpuRayCaster::new`].
     pub fn with_casters(geometry: &Geometry, casters: Option<&[u32]>) -> Result<GpuRayCaster> {
         if geometry.is_empty() || casters.is_some_and(|c| c.is_empty()) {
-            bail!("no triangles");
+            device_bail!("no triangles");
         }
         let (adapter, device, queue) = crate::util::adapter::offscreen_device()?;
         let (nodes, ids) = gpu_bvh(geometry, casters)?;
@@ -157,7 +158,7 @@ impl GpuRayCaster {
                     submission_index: Some(i),
                     timeout: None,
                 })
-                .map_err(|e| anyhow!("GPU wait failed: {e}"))
+                .map_err(|e| device_error!("GPU wait failed: {e}"))
         };
         let t0 = std::time::Instant::now();
         self.queue
@@ -314,15 +315,16 @@ impl GpuRayCaster {
                 submission_index: Some(pending.index),
                 timeout: None,
             })
-            .map_err(|e| anyhow!("GPU wait failed: {e}"))?;
-        rx.recv()?
-            .map_err(|e| anyhow!("cannot read the hits back: {e}"))?;
+            .map_err(|e| device_error!("GPU wait failed: {e}"))?;
+        rx.recv()
+            .map_err(|e| device_error!("GPU read-back: {e}"))?
+            .map_err(|e| device_error!("cannot read the hits back: {e}"))?;
         let hits = {
             let view = slot
                 .read
                 .slice(..size)
                 .get_mapped_range()
-                .map_err(|e| anyhow!("cannot map the hits: {e:?}"))?;
+                .map_err(|e| device_error!("cannot map the hits: {e:?}"))?;
             bytemuck::cast_slice::<u8, GpuHit>(&view).to_vec()
         };
         slot.read.unmap();
@@ -447,11 +449,11 @@ impl BatchCaster for GpuBatches<'_> {
                 .map(|r| self.generate(r.clone(), per_item, generate));
             let this = pending
                 .take()
-                .ok_or_else(|| anyhow!("batch {b} was not submitted"))?;
+                .ok_or_else(|| device_error!("batch {b} was not submitted"))?;
             let hits = self
                 .gpu
                 .wait(&slots[b % 2], this)
-                .context("GPU ray casting failed")?;
+                .map_err(|e| device_error!("GPU ray casting failed: {e}"))?;
             if let Some(n) = &next {
                 pending = Some(self.gpu.submit(&slots[(b + 1) % 2], &n.flat));
             }
@@ -493,7 +495,7 @@ fn gpu_bvh(geometry: &Geometry, casters: Option<&[u32]>) -> Result<(Vec<GpuNode>
         }
     }
     if depth > STACK {
-        bail!("BVH depth {depth} exceeds the GPU traversal stack ({STACK})");
+        device_bail!("BVH depth {depth} exceeds the GPU traversal stack ({STACK})");
     }
     let nodes: Vec<GpuNode> = bvh
         .nodes
@@ -592,7 +594,7 @@ fn pipeline(device: &wgpu::Device) -> Result<(wgpu::ComputePipeline, wgpu::BindG
         cache: None,
     });
     if let Some(e) = pollster::block_on(scope.pop()) {
-        bail!("the ray-casting shader does not compile here: {e}");
+        device_bail!("the ray-casting shader does not compile here: {e}");
     }
     Ok((pipeline, layout))
 }

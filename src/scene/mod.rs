@@ -1,4 +1,4 @@
-//! Stage 1 — the imported scene: meshes in their local space, the node
+//! The imported scene: meshes in their local space, the node
 //! instances that place them in the world, materials, textures, lights and
 //! cameras. `gltf.rs` is the only file that reads glTF.
 //!

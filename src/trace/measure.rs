@@ -50,7 +50,8 @@ pub struct Reading {
 }
 
 /// The normal a sample point's hemisphere is taken about.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum MeterNormal {
     /// The interpolated `NORMAL` (the smooth surface the mesh stands for).
     #[default]

@@ -18,9 +18,8 @@ use std::path::Path;
 const PURPOSE: u64 = 6;
 
 /// Which estimator renders an image.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Integrator {
     /// Unidirectional path tracing with next-event estimation and MIS.

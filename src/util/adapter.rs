@@ -3,13 +3,8 @@
 //! `preview`, which brings `gpu`): hardware first, a software adapter
 //! (Mesa's lavapipe or llvmpipe) otherwise.
 
-use anyhow::{Context as _, Result};
-
-/// No usable graphics adapter (GPU or software): callers may treat this as
-/// "cannot run here" rather than as a failure.
-#[derive(Debug, thiserror::Error)]
-#[error("no graphics adapter: {0}")]
-pub struct NoAdapter(pub String);
+use crate::error::device_error;
+use crate::{Error, Result};
 
 /// A wgpu instance for `backends` (overridden by `WGPU_BACKEND` and the
 /// other wgpu environment variables), optionally tied to a display
@@ -39,7 +34,7 @@ pub fn device(
         ..Default::default()
     }))
     .map_err(|e| {
-        NoAdapter(format!(
+        Error::NoAdapter(format!(
             "{e} (install a GPU driver, or Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1)"
         ))
     })?;
@@ -48,7 +43,7 @@ pub fn device(
         required_limits: adapter.limits(),
         ..Default::default()
     }))
-    .context("cannot create the GPU device")?;
+    .map_err(|e| device_error!("cannot create the GPU device: {e}"))?;
     Ok((adapter, device, queue))
 }
 
@@ -58,7 +53,7 @@ pub fn device(
 pub fn offscreen_device() -> Result<(wgpu::Adapter, wgpu::Device, wgpu::Queue)> {
     let primary = device(&instance(wgpu::Backends::PRIMARY, None), None);
     match primary {
-        Err(e) if e.is::<NoAdapter>() && std::env::var_os("WGPU_BACKEND").is_none() => {
+        Err(Error::NoAdapter(_)) if std::env::var_os("WGPU_BACKEND").is_none() => {
             device(&instance(wgpu::Backends::GL, None), None)
         }
         r => r,

@@ -13,9 +13,10 @@
 
 use super::hemicube::{cameras, Cameras, Hemicube, Pixel, Resolve, RowBatches, Rows, Setup, EMPTY};
 use super::FormFactorStats;
+use crate::error::{device_bail, device_error};
 use crate::layout::geometry::Geometry;
 use crate::surface::Surfaces;
-use anyhow::{anyhow, bail, Result};
+use crate::Result;
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 use std::sync::Mutex;
@@ -72,11 +73,11 @@ impl GpuHemicubes {
     /// the vertex stage, say), or a resolution the atlas cannot hold.
     pub fn new(geometry: &Geometry, n: u32) -> Result<GpuHemicubes> {
         if geometry.is_empty() {
-            bail!("no triangles");
+            device_bail!("no triangles");
         }
         let n = Hemicube::new(n.min(ATLAS)).n;
         if 3 * n > ATLAS {
-            bail!(
+            device_bail!(
                 "hemicube resolution {n} is above the GPU atlas's {}",
                 ATLAS / 3
             );
@@ -97,10 +98,7 @@ impl GpuHemicubes {
         });
         let targets = targets(&device, &pipeline, &corners, width, height, 5 * cols * rows);
         if let Some(e) = pollster::block_on(scope.pop()) {
-            bail!(
-                "the hemicube pipeline does not build here: {:#}",
-                anyhow::Error::new(e)
-            );
+            device_bail!("the hemicube pipeline does not build here: {e}");
         }
         Ok(GpuHemicubes {
             device,
@@ -133,7 +131,7 @@ impl GpuHemicubes {
         let t = self
             .targets
             .lock()
-            .map_err(|_| anyhow!("GPU hemicube lock"))?;
+            .map_err(|_| device_error!("GPU hemicube lock"))?;
         self.upload_faces(&t, cams);
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let mut encoder = self.device.create_command_encoder(&Default::default());
@@ -161,7 +159,7 @@ impl GpuHemicubes {
         }
         let index = self.queue.submit([encoder.finish()]);
         if let Some(e) = pollster::block_on(scope.pop()) {
-            bail!("GPU hemicubes: {:#}", anyhow::Error::new(e));
+            device_bail!("GPU hemicubes: {e}");
         }
         self.read_back(&t, index, used)
     }
@@ -253,14 +251,15 @@ impl GpuHemicubes {
                 submission_index: Some(index),
                 timeout: None,
             })
-            .map_err(|e| anyhow!("GPU wait failed: {e}"))?;
+            .map_err(|e| device_error!("GPU wait failed: {e}"))?;
         for _ in 0..2 {
-            rx.recv()?
-                .map_err(|e| anyhow!("cannot read the hemicubes back: {e}"))?;
+            rx.recv()
+                .map_err(|e| device_error!("GPU read-back: {e}"))?
+                .map_err(|e| device_error!("cannot read the hemicubes back: {e}"))?;
         }
         let read = |b: &wgpu::Buffer, size: u64| -> Result<Vec<u8>> {
             let view = (b.slice(..size).get_mapped_range())
-                .map_err(|e| anyhow!("cannot map the hemicubes: {e:?}"))?;
+                .map_err(|e| device_error!("cannot map the hemicubes: {e:?}"))?;
             Ok(view.to_vec())
         };
         let (items, barys) = (read(&t.item_read, bytes(4))?, read(&t.bary_read, bytes(8))?);
@@ -298,7 +297,7 @@ impl GpuHemicubes {
 impl RowBatches for GpuHemicubes {
     fn rows(&self, s: &Surfaces, setup: &Setup, patches: &[usize]) -> Result<Rows> {
         if setup.cube.n != self.n {
-            bail!(
+            device_bail!(
                 "GPU hemicubes were built for {} pixels, asked for {}",
                 self.n,
                 setup.cube.n

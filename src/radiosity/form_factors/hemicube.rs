@@ -741,7 +741,7 @@ pub trait RowBatches: Sync {
     ///
     /// # Errors
     /// The device failed; the caller computes the rows on the CPU.
-    fn rows(&self, s: &Surfaces, setup: &Setup, patches: &[usize]) -> anyhow::Result<Rows>;
+    fn rows(&self, s: &Surfaces, setup: &Setup, patches: &[usize]) -> crate::Result<Rows>;
     /// The device, for the bake's warning.
     fn describe(&self) -> String;
 }
@@ -755,7 +755,7 @@ pub fn compute_on(
     gpu: &dyn RowBatches,
     n: u32,
     advance: &(dyn Fn(u64) + Sync),
-) -> anyhow::Result<FormFactors> {
+) -> crate::Result<FormFactors> {
     let setup = Setup::new(s, n);
     let patches: Vec<usize> = (0..s.patches.len()).collect();
     let mut results = Vec::with_capacity(patches.len());

@@ -1,4 +1,4 @@
-//! Stage 5 — form factors Fᵢⱼ: the fraction of the energy leaving patch i
+//! Form factors Fᵢⱼ: the fraction of the energy leaving patch i
 //! (diffusely) that arrives at patch j (Goral et al. 1984):
 //!
 //! Fᵢⱼ = 1/Aᵢ ∫_Aᵢ ∫_Aⱼ cos θᵢ cos θⱼ / (π r²) V(x, y) dAⱼ dAᵢ

@@ -42,7 +42,7 @@ pub fn compute_batched(
     rays_per_patch: u32,
     seed: u64,
     advance: &(dyn Fn(u64) + Sync),
-) -> anyhow::Result<FormFactors> {
+) -> crate::Result<FormFactors> {
     let n = s.patches.len();
     let rpp = rays_per_patch.max(1) as usize;
     let mut rows = Vec::with_capacity(n);

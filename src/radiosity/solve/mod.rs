@@ -1,4 +1,4 @@
-//! Stage 6 — solving the radiosity equation. With every surface Lambertian,
+//! Solving the radiosity equation. With every surface Lambertian,
 //! we solve for outgoing radiance Lᵢ (= Bᵢ/π) rather than radiosity:
 //!
 //! Lᵢ = Eᵢ + ρᵢ Hᵢ,   Hᵢ = Σⱼ Fᵢⱼ Lⱼ + Dᵢ
