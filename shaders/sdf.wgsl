@@ -114,8 +114,9 @@ fn sdf_ao(p: vec3<f32>, n: vec3<f32>, reach: f32) -> f32 {
     return sum / weights;
 }
 
-// The march's constants: those of src/sdf.rs (voxels; slopes unitless),
-// so that the view shows the surfaces `Sdf::march` finds.
+// The march's constants: those of src/sdf/mod.rs (voxels; slopes
+// unitless), so that the view shows the surfaces `Sdf::march` finds; the
+// test `sdf::tests::shader_march_constants_match` compares them.
 const SDF_MARCH_STEPS: i32 = 4096;
 const SDF_MIN_STEP: f32 = 0.25;
 const SDF_SURFACE_SLOPE: f32 = 1.3;

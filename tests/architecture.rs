@@ -788,6 +788,37 @@ fn command_line_crates_only_in_the_binary() {
     );
 }
 
+/// Every random-stream purpose comes from the one table,
+/// `util::sampling::purpose` (whose test keeps the numbers unique): no
+/// file sets a purpose constant to a number of its own.
+#[test]
+fn stream_purposes_come_from_the_table() {
+    let mut bad = Vec::new();
+    let mut rels = Vec::new();
+    walk(&src_dir(), &src_dir(), &mut rels);
+    for rel in rels {
+        if rel == "util/sampling.rs" {
+            continue;
+        }
+        let text = fs::read_to_string(src_dir().join(&rel)).unwrap_or_default();
+        for (n, line) in text.lines().enumerate() {
+            let l = line.trim();
+            if l.contains("const ")
+                && l.contains("PURPOSE")
+                && l.contains(": u64 =")
+                && !l.contains("purpose::")
+            {
+                bad.push(format!("src/{rel}:{}: {l}", n + 1));
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "purposes outside util::sampling::purpose:\n{}",
+        bad.join("\n")
+    );
+}
+
 /// The command-line crates are optional dependencies that only the `cli`
 /// feature (and, for `anyhow`, `preview`) brings, so a build tool that
 /// depends on `radbake` with `default-features = false` compiles none of

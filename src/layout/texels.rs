@@ -268,7 +268,7 @@ pub fn barycentric(t: &[Vec2; 3], p: Vec2) -> Vec3 {
 const FOOTPRINT_GRID: u32 = 4;
 
 /// Stream purpose id of the footprint samples.
-const FOOTPRINT_PURPOSE: u64 = 10;
+const FOOTPRINT_PURPOSE: u64 = crate::util::sampling::purpose::FOOTPRINT;
 
 /// Mean albedo and emission of a textured `material` over the part of texel
 /// `xy` that triangle `t` (lightmap corners `lm`) covers: a box filter

@@ -29,7 +29,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Stream purpose id of direct-light samples.
-const PURPOSE: u64 = 2;
+const PURPOSE: u64 = crate::util::sampling::purpose::DIRECT;
 
 /// Direct irradiance / π over a texel: punctual lights exactly at its
 /// `centre` points (point and normal; one shadow ray each), emitters by one light

@@ -232,7 +232,7 @@ pub fn punctual_unoccluded(rays: &RayCaster, origin: Vec3, dir: Vec3, dist: f32)
 }
 
 /// Stream purpose id of the samples over lights' extents.
-pub(crate) const PURPOSE_EXTENT: u64 = 40;
+pub(crate) const PURPOSE_EXTENT: u64 = crate::util::sampling::purpose::LIGHT_EXTENT;
 
 /// Shadow rays per texel and light with a size (a sphere or a sun disk),
 /// stratified over the light's extent.

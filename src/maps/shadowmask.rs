@@ -34,7 +34,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// Stream purpose id of the shadowmask's samples over lights' extents.
-const PURPOSE: u64 = 41;
+const PURPOSE: u64 = crate::util::sampling::purpose::SHADOWMASK;
 
 /// Channels of a shadowmask page (R, G, B, A).
 pub const CHANNELS: usize = 4;

@@ -27,7 +27,7 @@ use crate::util::sampling::{Net, Stream};
 use glam::{Quat, Vec3};
 
 /// Stream purpose id of probe rays.
-const PURPOSE: u64 = 31;
+const PURPOSE: u64 = crate::util::sampling::purpose::PROBES;
 
 /// A probe is invalid when more than this fraction of its rays meet back
 /// faces.

@@ -37,14 +37,14 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// Stream purpose id of final-gather rays.
-const PURPOSE: u64 = 3;
+const PURPOSE: u64 = crate::util::sampling::purpose::GATHER;
 
 /// Stream purpose id of the gather's light samples ([`crate::radiosity::patch_lights`]).
-const PURPOSE_NEE: u64 = 15;
+const PURPOSE_NEE: u64 = crate::util::sampling::purpose::PATCH_LIGHTS;
 
 /// Stream purpose id of the near field's direct-light samples
 /// ([`NearField`]).
-const PURPOSE_NEAR: u64 = 27;
+const PURPOSE_NEAR: u64 = crate::util::sampling::purpose::NEAR_FIELD;
 
 /// The gather may stop early (under a tolerance below 0.9): after at least
 /// 16 rays, more than 90 % met

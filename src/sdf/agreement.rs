@@ -185,7 +185,7 @@ fn went_past(
 /// −Y (even odds): the rays of the agreement test. Deterministic for
 /// `seed`.
 pub fn random_rays(sdf: &Sdf, bounds: (Vec3, Vec3), seed: u64, n: usize) -> Vec<(Vec3, Vec3)> {
-    let mut rng = Stream::new(seed, 99, 0);
+    let mut rng = Stream::new(seed, crate::util::sampling::purpose::SDF_AGREEMENT, 0);
     let mut out = Vec::with_capacity(n);
     while out.len() < n {
         let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());

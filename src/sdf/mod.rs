@@ -554,6 +554,37 @@ fn votes(scene: &Scene, g: &Geometry, rays: &RayCaster, p: Vec3) -> (u32, u32, u
 mod tests {
     use super::*;
 
+    /// The preview's shader marches with the same constants as
+    /// [`Sdf::march`], so its `sdf` view shows the surfaces the march finds.
+    #[test]
+    fn shader_march_constants_match() {
+        let wgsl = include_str!("../../shaders/sdf.wgsl");
+        let value = |name: &str| -> f64 {
+            let line = wgsl
+                .lines()
+                .find(|l| l.starts_with(&format!("const {name}:")))
+                .unwrap_or_else(|| panic!("shaders/sdf.wgsl has no {name}"));
+            let v = line.split('=').nth(1).unwrap().trim().trim_end_matches(';');
+            v.parse().unwrap_or_else(|_| panic!("{name} = {v}"))
+        };
+        let rust: [(&str, f64); 7] = [
+            ("SDF_MARCH_STEPS", MARCH_STEPS as f64),
+            ("SDF_MIN_STEP", MIN_STEP as f64),
+            ("SDF_SURFACE_SLOPE", SURFACE_SLOPE as f64),
+            ("SDF_NEAR", NEAR as f64),
+            ("SDF_UNSIGNED", UNSIGNED as f64),
+            ("SDF_UNSIGNED_FLAT", UNSIGNED_FLAT as f64),
+            ("SDF_FLAT", FLAT as f64),
+        ];
+        for (name, v) in rust {
+            let w = value(name);
+            assert!(
+                (w - v).abs() <= 1e-6 * v.abs(),
+                "shaders/sdf.wgsl {name} = {w}, src/sdf/mod.rs has {v}"
+            );
+        }
+    }
+
     #[test]
     fn grid_covers_the_bounds_with_a_margin() {
         let g = Grid::over((Vec3::ZERO, Vec3::new(1.0, 2.0, 0.5)), 0.25);

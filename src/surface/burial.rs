@@ -31,7 +31,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Stream purpose id of the burial test's hemisphere rays and area points.
-const PURPOSE: u64 = 12;
+const PURPOSE: u64 = crate::util::sampling::purpose::BURIAL;
 
 /// Rays along the surface per texel.
 const TANGENT_RAYS: u32 = 8;

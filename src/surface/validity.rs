@@ -26,7 +26,7 @@ pub(crate) fn too_many_back_faces(back: u32, rays: u32, tolerance: f32) -> bool 
 pub const VALIDITY_RAYS: u32 = 8;
 
 /// Stream purpose id of the validity estimate's rays.
-const VALIDITY_PURPOSE: u64 = 11;
+const VALIDITY_PURPOSE: u64 = crate::util::sampling::purpose::VALIDITY;
 
 /// A cheap first estimate of texel validity (the gather's rule with
 /// back-face `tolerance` on `rays` of its rays per texel), so texels buried

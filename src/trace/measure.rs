@@ -28,7 +28,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Stream purpose id of the meter's samples.
-const PURPOSE: u64 = 21;
+const PURPOSE: u64 = crate::util::sampling::purpose::METER;
 /// Samples per chunk (one random stream each).
 const CHUNK: u64 = 4096;
 

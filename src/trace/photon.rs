@@ -28,8 +28,8 @@ use std::f32::consts::PI;
 use std::num::NonZero;
 
 /// Stream purpose ids.
-const PURPOSE_EMIT: u64 = 7;
-const PURPOSE_GATHER: u64 = 8;
+const PURPOSE_EMIT: u64 = crate::util::sampling::purpose::PHOTON_EMIT;
+const PURPOSE_GATHER: u64 = crate::util::sampling::purpose::PHOTON_GATHER;
 
 /// Photons of one surface orientation count for a query only when their
 /// normals are within ~25° of the query's (no light across thin walls or

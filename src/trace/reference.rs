@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Stream purpose id of reference-texel paths.
-const PURPOSE_TEXELS: u64 = 5;
+const PURPOSE_TEXELS: u64 = crate::util::sampling::purpose::REFERENCE_TEXELS;
 
 /// Reference lightmap texels: each texel's H/π by path tracing from
 /// `samples` stratified points over it (`sample_texel(t, jitter, rng)`:

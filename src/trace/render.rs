@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use std::path::Path;
 
 /// Stream purpose id of camera paths.
-const PURPOSE: u64 = 6;
+const PURPOSE: u64 = crate::util::sampling::purpose::RENDER;
 
 /// Which estimator renders an image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

@@ -22,7 +22,7 @@ use crate::sdf::Sdf;
 use glam::Vec3;
 
 /// Stream purpose id of the sphere-traced camera rays.
-const PURPOSE: u64 = 42;
+const PURPOSE: u64 = crate::util::sampling::purpose::SPHERE_TRACE;
 
 /// Radiance along camera ray `origin + t·dir`, by sphere tracing.
 pub fn radiance(tracer: &Tracer, sdf: &Sdf, origin: Vec3, dir: Vec3) -> Vec3 {

@@ -9,6 +9,70 @@ use rand::{Rng as _, SeedableRng};
 /// do not depend on which thread handles which item.
 pub struct Stream(rand_pcg::Pcg32);
 
+/// Every random stream's purpose: the second argument of [`Stream::new`].
+/// Two uses that shared a purpose would draw the same numbers for the same
+/// item; the test below keeps them apart.
+pub mod purpose {
+    /// Ray-cast form factors: each patch's rays.
+    pub const FORM_FACTORS: u64 = 1;
+    /// Direct light: each texel's light samples.
+    pub const DIRECT: u64 = 2;
+    /// Final gather: each texel's position and direction nets.
+    pub const GATHER: u64 = 3;
+    /// Path-traced reference texels.
+    pub const REFERENCE_TEXELS: u64 = 5;
+    /// Camera paths of `radbake render`; pass k of the final pass uses RENDER + 16 k.
+    pub const RENDER: u64 = 6;
+    /// Photon mapping: emitted photons.
+    pub const PHOTON_EMIT: u64 = 7;
+    /// Photon mapping: each texel's gather.
+    pub const PHOTON_GATHER: u64 = 8;
+    /// Texel footprint samples.
+    pub const FOOTPRINT: u64 = 10;
+    /// Texel validity votes.
+    pub const VALIDITY: u64 = 11;
+    /// Burial planes: each texel's rays.
+    pub const BURIAL: u64 = 12;
+    /// Final gather: next-event estimation towards patch lights.
+    pub const PATCH_LIGHTS: u64 = 15;
+    /// The irradiance meter's samples.
+    pub const METER: u64 = 21;
+    /// Final gather: local lights read at near hits.
+    pub const NEAR_FIELD: u64 = 27;
+    /// Probe rays.
+    pub const PROBES: u64 = 31;
+    /// Points over a texel's extent for local lights.
+    pub const LIGHT_EXTENT: u64 = 40;
+    /// Shadowmask occlusion rays.
+    pub const SHADOWMASK: u64 = 41;
+    /// Sphere-traced camera rays.
+    pub const SPHERE_TRACE: u64 = 42;
+    /// Random rays of the SDF-against-ray-casting check.
+    pub const SDF_AGREEMENT: u64 = 99;
+
+    /// Every purpose above, by name.
+    pub const ALL: &[(&str, u64)] = &[
+        ("FORM_FACTORS", FORM_FACTORS),
+        ("DIRECT", DIRECT),
+        ("GATHER", GATHER),
+        ("REFERENCE_TEXELS", REFERENCE_TEXELS),
+        ("RENDER", RENDER),
+        ("PHOTON_EMIT", PHOTON_EMIT),
+        ("PHOTON_GATHER", PHOTON_GATHER),
+        ("FOOTPRINT", FOOTPRINT),
+        ("VALIDITY", VALIDITY),
+        ("BURIAL", BURIAL),
+        ("PATCH_LIGHTS", PATCH_LIGHTS),
+        ("METER", METER),
+        ("NEAR_FIELD", NEAR_FIELD),
+        ("PROBES", PROBES),
+        ("LIGHT_EXTENT", LIGHT_EXTENT),
+        ("SHADOWMASK", SHADOWMASK),
+        ("SPHERE_TRACE", SPHERE_TRACE),
+        ("SDF_AGREEMENT", SDF_AGREEMENT),
+    ];
+}
+
 /// SplitMix64 finaliser, to turn (seed, ids) into well-mixed stream seeds.
 pub(crate) fn mix(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
@@ -416,5 +480,20 @@ mod tests {
         let p = Vec3::new(100.0, -3.0, 0.001);
         let q = offset_ray_origin(p, Vec3::Z);
         assert!(q.z > p.z && (q - p).length() < 1e-3);
+    }
+
+    #[test]
+    fn stream_purposes_are_unique() {
+        let mut seen = std::collections::BTreeMap::new();
+        for &(name, p) in purpose::ALL {
+            if let Some(other) = seen.insert(p, name) {
+                panic!("purposes {other} and {name} share {p}");
+            }
+        }
+        // The render's passes use RENDER + 16 k.
+        for k in 1..=64 {
+            let p = purpose::RENDER + 16 * k;
+            assert!(!seen.contains_key(&p), "render pass {k} meets {}", seen[&p]);
+        }
     }
 }

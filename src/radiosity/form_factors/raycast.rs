@@ -13,7 +13,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// Stream purpose id of form-factor rays.
-const PURPOSE: u64 = 1;
+const PURPOSE: u64 = crate::util::sampling::purpose::FORM_FACTORS;
 
 /// Computes every row of F by casting `rays_per_patch` rays from each patch.
 /// `advance` is called with the number of patches done.
