@@ -9,7 +9,7 @@
 //   const probes = await loadRadbakeProbes('bake/probes.json');   // optional
 //   scene.add(probes.lightProbeAt(character.position));             // a LightProbe
 //
-// Conventions (README, "Web (three.js)"): a lightmap texel holds incident
+// Conventions (docs/engines.md, three.js): a lightmap texel holds incident
 // irradiance / π as sRGB(value / s) with one scale s per instance, and
 // `MOZ_lightmap.intensity` = π s. three.js takes `texel × lightMapIntensity`
 // as irradiance and divides by π in the Lambert BRDF (and in

@@ -6,7 +6,7 @@
 
 use crate::layout::burial::Burial;
 use crate::layout::texels::Texels;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use std::collections::HashMap;
 
 /// A patch index.
@@ -73,11 +73,6 @@ impl Patches {
     pub fn block_share(&self, i: usize) -> f32 {
         let whole = (self.block * self.block).max(1) as f32;
         (self.texels_of(i).len() as f32 / whole).min(1.0)
-    }
-
-    /// Centre of block (bx, by) in texel coordinates.
-    pub fn block_centre(&self, bx: u32, by: u32) -> Vec2 {
-        (Vec2::new(bx as f32, by as f32) + 0.5) * self.block as f32
     }
 }
 

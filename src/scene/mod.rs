@@ -340,14 +340,6 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Number of triangles after instancing.
-    pub fn instanced_triangle_count(&self) -> usize {
-        self.instances
-            .iter()
-            .map(|i| self.meshes[i.mesh as usize].triangles.len())
-            .sum()
-    }
-
     /// True when some material emits or some light shines.
     pub fn has_emitters(&self) -> bool {
         !self.lights.is_empty()
