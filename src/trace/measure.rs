@@ -4,8 +4,9 @@
 //!
 //! For each node it samples points uniformly by area over the node's world
 //! triangles (a triangle picked in proportion to its area, then a uniform
-//! point on it; Turk 1990), takes the interpolated `NORMAL` there (the
-//! README's convention: a texel's light is for its shading normal), and
+//! point on it; Turk 1990), takes the interpolated `NORMAL` there (or the
+//! facet's own normal with `--normal geometric`, the texels' quantity: see
+//! docs/lighting.md), and
 //! path-traces the incident irradiance / π along cosine-distributed
 //! directions with every bounce ([`Tracer::incident`]: next-event estimation
 //! of the lights with MIS, Russian roulette). The reading is the sample mean
