@@ -4,7 +4,7 @@
 //!
 //!     cargo run --release --example build_step -- scenes/cornell_box.gltf out/build_step
 
-use radbake::pipeline::incremental;
+use radbake::incremental;
 use radbake::BakeConfig;
 use std::path::PathBuf;
 

@@ -1,5 +1,5 @@
 //! A game level against the independent irradiance meter: the generated
-//! atrium (`examples/gen_level`: floors, outer walls, columns and arches,
+//! atrium (`tools/gen_level`: floors, outer walls, columns and arches,
 //! emissive wall lamps, a sun), baked at 4 texels/m. Every instance of at
 //! least 10 m² must have its `mean` within 5 % of the meter, the lamps
 //! too: thin boxes whose 5 cm side faces, a fifth of a texel wide, gather

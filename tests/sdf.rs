@@ -316,7 +316,7 @@ fn open_box_in_a_room_agrees_with_the_closed_one() {
 /// voxel late; 26 go through a surface with no zero crossing there (most
 /// within half a voxel of a wall's or a block's edge); 5 meet their
 /// surface at under 11.5°; 3 hit within a voxel of the grid's border.
-/// (Sponza at 256 voxels: 97.89 %, see `examples/sdf_agreement.rs`.)
+/// (Sponza at 256 voxels: 97.89 %, see `tools/sdf_agreement.rs`.)
 #[test]
 fn sphere_tracing_agrees_with_the_bvh() {
     use sdf::agreement::{compare, random_rays, Class};

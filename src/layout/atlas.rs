@@ -39,7 +39,7 @@ pub struct InstanceRect {
 
 impl InstanceRect {
     /// Atlas texel coordinate (not normalised) of a UV in this rectangle.
-    pub fn to_texels(&self, uv: Vec2, width: u32, height: u32) -> Vec2 {
+    pub fn to_texels(self, uv: Vec2, width: u32, height: u32) -> Vec2 {
         let min = Vec2::from(self.min);
         let max = Vec2::from(self.max);
         (min + uv * (max - min)) * Vec2::new(width as f32, height as f32)

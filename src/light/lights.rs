@@ -359,7 +359,7 @@ impl Mis {
     /// with `p_b`; the light estimator's is one minus it. Power heuristic
     /// (β = 2, Veach 1997 §9.2.4): on the Cornell box's small lamp it gave
     /// a per-texel noise median of 0.52 % against the balance heuristic's
-    /// 0.82 % (128 gather rays, 64 light samples; `examples/texel_noise`).
+    /// 0.82 % (128 gather rays, 64 light samples; `tools/texel_noise`).
     pub fn hemisphere_weight(&self, p_l: f32, p_b: f32) -> f32 {
         let b = self.hemisphere as f32 * p_b;
         let l = self.light as f32 * p_l;

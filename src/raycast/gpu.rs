@@ -144,7 +144,7 @@ impl GpuRayCaster {
     }
 
     /// Casts `rays` and times the three steps apart, each waited for on its
-    /// own: upload, the kernel, readback (for `examples/gpu_rays.rs`).
+    /// own: upload, the kernel, readback (for `tools/gpu_rays.rs`).
     ///
     /// # Errors
     /// A failed GPU wait or readback.

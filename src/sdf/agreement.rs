@@ -4,7 +4,7 @@
 //! within one voxel of each other along it. A ray that does not agree is
 //! put in a [`Class`] by what lies where the two parted, so that the
 //! remainder can be reported by cause. Used by `tests/sdf.rs` and
-//! `examples/sdf_agreement.rs`.
+//! `tools/sdf_agreement.rs`.
 
 use super::Sdf;
 use crate::layout::geometry::Geometry;

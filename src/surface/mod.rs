@@ -442,7 +442,7 @@ impl TexelSampler<'_> {
     /// A local (+Z up) direction in the world, around the texel's normal
     /// ([`crate::util::sampling::to_world`]).
     #[inline]
-    pub fn to_world(&self, local: Vec3) -> Vec3 {
+    pub fn to_world(self, local: Vec3) -> Vec3 {
         let (t, b) = self.frame;
         t * local.x + b * local.y + self.ng * local.z
     }

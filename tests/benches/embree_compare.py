@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Casts the rays of `examples/dump_rays.rs` with Embree (the `embreex`
+"""Casts the rays of `tools/dump_rays.rs` with Embree (the `embreex`
 package: Embree 4, `rtcIntersect1` / `rtcOccluded1` per ray) and compares
 rays/s and answers with radbake's ray caster (a SIMD BVH4 collapsed from
 an obvhs PLOC build).

@@ -10,7 +10,7 @@
 //! (hence the texel count of a bake) stays the same at every size. Pure
 //! function of the request: the same count gives the same bytes.
 //!
-//! Shared by `examples/gen_level.rs` and the benchmarks (`tests/benches/`).
+//! Shared by `tools/gen_level.rs` and the benchmarks (`tests/benches/`).
 #![allow(dead_code)]
 
 use glam::{Quat, Vec3};

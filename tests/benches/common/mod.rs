@@ -1,4 +1,4 @@
-//! Shared set-up of the benchmarks (and of `examples/dump_rays.rs`): the
+//! Shared set-up of the benchmarks (and of `tools/dump_rays.rs`): the
 //! generated level, world triangles without a lightmap atlas, seeded
 //! incoherent rays, and the Cornell box baked once.
 #![allow(dead_code)]

@@ -7,7 +7,7 @@
 //!     python3 tests/benches/embree_compare.py rays.bin
 //!
 //! Without a scene, the generated level of `--triangles` (as
-//! `examples/gen_level.rs` writes it) is used.
+//! `tools/gen_level.rs` writes it) is used.
 //!
 //! File layout (little-endian): `b"RBRAYS01"`; u32 triangles, closest-hit
 //! rays, occlusion rays, rayon threads; f64 radbake rays/s: closest-hit on 1
