@@ -23,7 +23,7 @@ fn main() -> anyhow::Result<()> {
     };
     config.validate()?;
 
-    let mut scene = radbake::scene::load(&scene_path, &Default::default())?;
+    let mut scene = radbake::load(&scene_path, &Default::default())?;
     config.light_modes.apply(&mut scene)?;
     let bake = radbake::bake(&scene, &config, &radbake::Silent)?;
     for w in &bake.warnings {

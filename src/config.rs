@@ -83,6 +83,40 @@ pub enum DirectionalMode {
     Sh,
 }
 
+/// Light layers ([`crate::scene::layers`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum LayerMode {
+    /// One lightmap per layer where the scene names a layer (on a light's
+    /// node or a material) or `sky_layer` is set; else as `off`.
+    #[default]
+    Auto,
+    /// One lightmap of every light, whatever layers the scene names.
+    Off,
+}
+
+impl LayerMode {
+    fn is_auto(&self) -> bool {
+        *self == LayerMode::Auto
+    }
+}
+
+/// The layer of every light that names none.
+pub const STATIC_LAYER: &str = "static";
+
+/// A light layer's name is a plain identifier: ASCII letters, digits and
+/// `_`, 1 to 32 of them, not starting with a digit (it names files:
+/// `lightmap_<page>_<layer>.exr`).
+pub fn valid_layer_name(name: &str) -> bool {
+    let mut chars = name.chars();
+    (1..=32).contains(&name.len())
+        && chars
+            .next()
+            .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
 /// The HDR lightmap pages written as KTX2 (what Bevy loads).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
@@ -316,6 +350,15 @@ pub struct BakeConfig {
     pub denoise: bool,
     /// HDR lightmap pages as KTX2 (`lightmap_<page>.ktx2`).
     pub ktx2: Ktx2Mode,
+    /// Light layers: `auto` bakes one lightmap (and probe set) per layer
+    /// where the scene names any; `off` bakes one of every light. Left out
+    /// of `report.json`'s settings at `auto`.
+    #[serde(default, skip_serializing_if = "LayerMode::is_auto")]
+    pub layers: LayerMode,
+    /// The sky's light layer (a plain identifier; `None`:
+    /// [`STATIC_LAYER`], and left out of `report.json`'s settings).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sky_layer: Option<String>,
     /// Bake light probes for dynamic objects ([`crate::probes`]).
     pub probes: bool,
     /// Probe spacing in metres (a `probe_volume` node may set its own).
@@ -486,6 +529,8 @@ impl BakeConfig {
             backface_tolerance: 0.5,
             denoise: true,
             ktx2: Ktx2Mode::Rgb9e5,
+            layers: LayerMode::Auto,
+            sky_layer: None,
             probes: true,
             probe_spacing: 1.0,
             probe_budget: 16_384,
@@ -686,6 +731,12 @@ impl BakeConfig {
         }
         if self.max_texels < 1024 {
             return bad("max_texels", "must be ≥ 1024");
+        }
+        if !self.sky_layer.as_deref().is_none_or(valid_layer_name) {
+            return bad(
+                "sky_layer",
+                "must be a plain identifier (letters, digits, _; at most 32, not starting with a digit)",
+            );
         }
         Ok(())
     }

@@ -111,6 +111,14 @@ pub struct BakeArgs {
     /// HDR lightmap pages as KTX2 for Bevy (lightmap_<page>.ktx2): `rgb9e5`, `bc6h` or `off` [default: rgb9e5].
     #[arg(long, value_enum)]
     pub ktx2: Option<radbake::config::Ktx2Mode>,
+    /// Light layers: `auto` bakes one lightmap and probe set per layer where the scene names one
+    /// (`extras.radbake.layer` on a light's node or a material) or --sky-layer is given; `off` bakes
+    /// one of every light [default: auto].
+    #[arg(long, value_enum)]
+    pub layers: Option<radbake::config::LayerMode>,
+    /// The sky's light layer (a plain identifier) [default: static].
+    #[arg(long, value_name = "NAME")]
+    pub sky_layer: Option<String>,
     /// Light probes for dynamic objects: on or off [default: on].
     #[arg(long, value_parser = parse_on_off, value_name = "on|off")]
     pub probes: Option<bool>,
@@ -282,6 +290,7 @@ impl BakeArgs {
             gather_nee,
             gather_near_field,
             ktx2,
+            layers,
             probes,
             probe_spacing,
             probe_budget,
@@ -307,6 +316,9 @@ impl BakeArgs {
         }
         if let Some(map) = &self.sky_map {
             c.sky_map = Some(map.clone());
+        }
+        if let Some(name) = &self.sky_layer {
+            c.sky_layer = Some(name.clone());
         }
         for (name, mode) in &self.light_mode {
             c.light_modes.lights.insert(name.clone(), *mode);

@@ -61,7 +61,7 @@ pub fn direct_at(
     let mut local = Vec3::ZERO;
     let w = 1.0 / punctual_points.len().max(1) as f32;
     for &(p, n) in punctual_points {
-        for light in &lights.punctual {
+        for (i, light) in lights.punctual.iter().enumerate() {
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
                 let (visible, cast) =
                     light_visibility(s.rays, light, &[(p, n, 1.0, dir, dist)], rng);
@@ -69,7 +69,7 @@ pub fn direct_at(
                 if visible <= 0.0 {
                     continue;
                 }
-                let value = value * visible;
+                let value = value * (visible * lights.punctual_weight(i));
                 if light.is_local() {
                     local += value * w;
                 }
@@ -148,7 +148,7 @@ pub fn direct_at(
     if let Some(map) = lights.sky.map().filter(|m| !m.is_black()) {
         let n = lights.sky_samples;
         let (sky, cast) = sky_light(s.rays, map, lights.sky_mis(mis), points, n, rng.next_vec2());
-        h += sky;
+        h += sky * lights.sky_weight();
         rays += cast;
     }
     TexelDirect {
@@ -225,7 +225,8 @@ pub fn hemisphere_light(
     }
     let le = s
         .scene
-        .emission_at(g.material[tri], g.uv0_at(hit.tri, hit.u, hit.v));
+        .emission_at(g.material[tri], g.uv0_at(hit.tri, hit.u, hit.v))
+        * lights.emission_weight(g.material[tri]);
     let p_b = n.dot(dir) / std::f32::consts::PI;
     let p_l = lights.pdf_solid_angle(g, k, p, p + dir * hit.t, g.ng_ws[tri]);
     le * mis.hemisphere_weight(p_l, p_b)
@@ -259,7 +260,8 @@ pub(crate) fn emitter_sample(
     }
     let le = s
         .scene
-        .emission_at(g.material[tri as usize], g.uv0_at(tri, ls.u, ls.v));
+        .emission_at(g.material[tri as usize], g.uv0_at(tri, ls.u, ls.v))
+        * lights.emission_weight(g.material[tri as usize]);
     let p_l = lights.pdf_solid_angle(g, e, p, q, nq);
     let p_b = cos_p / std::f32::consts::PI;
     // f / p_l · w_l / n_l with f = L cos_p / π.
@@ -284,11 +286,14 @@ pub fn local_light_at(
 ) -> (Vec3, u64) {
     let mut h = Vec3::ZERO;
     let mut rays = 0u64;
-    for light in lights.punctual.iter().filter(|l| l.is_local()) {
+    for (i, light) in lights.punctual.iter().enumerate() {
+        if !light.is_local() {
+            continue;
+        }
         if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
             let (visible, cast) = light_visibility(s.rays, light, &[(p, n, 1.0, dir, dist)], rng);
             rays += cast;
-            h += value * visible;
+            h += value * (visible * lights.punctual_weight(i));
         }
     }
     if lights.emitters.is_empty() {
@@ -403,7 +408,7 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> Texe
     let n_texel = s.texels.n_ws[t];
     // Drawn from only by lights with a size.
     let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
-    for light in &lights.punctual {
+    for (i, light) in lights.punctual.iter().enumerate() {
         let Some(seen) = pieces.light(s, light, &mut rng) else {
             continue;
         };
@@ -411,7 +416,7 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> Texe
         if seen.visible <= 0.0 {
             continue;
         }
-        let value = seen.unshadowed * seen.visible;
+        let value = seen.unshadowed * (seen.visible * lights.punctual_weight(i));
         if light.is_local() {
             out.local += value;
         }

@@ -28,6 +28,41 @@ pub struct Lights {
     /// A sky map's light samples per texel (or probe), for its MIS
     /// weights ([`escaped`]); set by the caller (`config.sky_samples`).
     pub sky_samples: u32,
+    /// One light layer's share of each light (`None`: all of it); see
+    /// [`Mask`].
+    pub mask: Option<Mask>,
+}
+
+/// One light layer's share of every light ([`crate::scene::layers`]):
+/// per punctual light (by its index in [`Lights::punctual`]), per material
+/// (its emission) and of the sky, 1 or 0. It scales what each light
+/// contributes where that contribution is read, and nothing else: the
+/// lights are sampled, and every ray is cast, as without it, so the
+/// layers' bakes share their random numbers and sum to the whole bake.
+#[derive(Clone, Debug, Default)]
+pub struct Mask {
+    /// Per punctual light.
+    pub punctual: Vec<f32>,
+    /// Per material.
+    pub material: Vec<f32>,
+    /// The sky's.
+    pub sky: f32,
+}
+
+impl Mask {
+    /// Layer `k` of `layers` (over `scene`, whose baked lights are
+    /// [`Lights::punctual`], in order).
+    pub fn of_layer(layers: &crate::scene::layers::Layers, scene: &Scene, k: usize) -> Mask {
+        let share = |x: &Option<usize>| if *x == Some(k) { 1.0 } else { 0.0 };
+        Mask {
+            punctual: (scene.lights.iter().zip(&layers.light))
+                .filter(|(l, _)| l.mode != LightMode::Realtime)
+                .map(|(_, x)| share(x))
+                .collect(),
+            material: layers.material.iter().map(share).collect(),
+            sky: share(&layers.sky),
+        }
+    }
 }
 
 impl Lights {
@@ -141,6 +176,32 @@ impl Lights {
             light: self.sky_samples,
             hemisphere: mis.hemisphere,
         }
+    }
+
+    /// These lights with `mask` applied ([`Mask`]).
+    pub fn masked(&self, mask: Mask) -> Lights {
+        Lights {
+            mask: Some(mask),
+            ..self.clone()
+        }
+    }
+
+    /// The layer's share of punctual light `i` ([`Lights::mask`]).
+    #[inline(always)]
+    pub fn punctual_weight(&self, i: usize) -> f32 {
+        self.mask.as_ref().map_or(1.0, |m| m.punctual[i])
+    }
+
+    /// The layer's share of material `m`'s emission.
+    #[inline(always)]
+    pub fn emission_weight(&self, m: u32) -> f32 {
+        self.mask.as_ref().map_or(1.0, |k| k.material[m as usize])
+    }
+
+    /// The layer's share of the sky.
+    #[inline(always)]
+    pub fn sky_weight(&self) -> f32 {
+        self.mask.as_ref().map_or(1.0, |m| m.sky)
     }
 
     /// True when there are local lights: emitters, or point or spot
@@ -373,13 +434,14 @@ impl Mis {
 /// hemisphere estimator's MIS weight against its light samples
 /// ([`sky_light`]; power heuristic with counts, as for the emitters).
 pub fn escaped(lights: &Lights, mis: Mis, n: Vec3, dir: Vec3) -> Vec3 {
-    match &lights.sky {
+    let l = match &lights.sky {
         Sky::Uniform(c) => *c,
         Sky::Map(m) => {
             let p_b = n.dot(dir).max(0.0) / std::f32::consts::PI;
             m.radiance(dir) * lights.sky_mis(mis).hemisphere_weight(m.pdf(dir), p_b)
         }
-    }
+    };
+    l * lights.sky_weight()
 }
 
 /// The directional part b of a texel's light, one RGB vector per world axis

@@ -31,6 +31,19 @@ pub struct Lightmaps {
 /// value: interpolation moves light around within a patch but neither makes
 /// nor loses any (clamped at 0).
 pub fn interpolate(texels: &Texels, patches: &Patches, patch_values: &[Vec3]) -> Vec<Vec3> {
+    let mut values = interpolate_unclamped(texels, patches, patch_values);
+    for v in &mut values {
+        *v = v.max(Vec3::ZERO);
+    }
+    values
+}
+
+/// [`interpolate`] before its clamp at 0: linear in `patch_values`.
+pub fn interpolate_unclamped(
+    texels: &Texels,
+    patches: &Patches,
+    patch_values: &[Vec3],
+) -> Vec<Vec3> {
     let mut values = interpolate_bilinear(texels, patches, patch_values);
     for (i, target) in patch_values.iter().enumerate() {
         let ids = patches.texels_of(i);
@@ -41,7 +54,7 @@ pub fn interpolate(texels: &Texels, patches: &Patches, patch_values: &[Vec3]) ->
             / patches.area[i];
         let shift = *target - mean;
         for &t in ids {
-            values[t as usize] = (values[t as usize] + shift).max(Vec3::ZERO);
+            values[t as usize] += shift;
         }
     }
     values
@@ -135,6 +148,25 @@ pub fn first_pass(
     let mut values = interpolate(texels, patches, indirect);
     for (v, d) in values.iter_mut().zip(direct) {
         *v += *d;
+    }
+    values
+}
+
+/// One light layer's first pass ([`first_pass`]) within the whole bake's:
+/// `indirect` is the layer's patch indirect light, `whole` the whole
+/// bake's [`interpolate_unclamped`]. A texel channel that the whole bake
+/// clamps at 0 is 0 in every layer, so the layers sum to the whole bake's
+/// first pass.
+pub fn first_pass_layer(
+    texels: &Texels,
+    patches: &Patches,
+    direct: &[Vec3],
+    indirect: &[Vec3],
+    whole: &[Vec3],
+) -> Vec<Vec3> {
+    let mut values = interpolate_unclamped(texels, patches, indirect);
+    for ((v, d), w) in values.iter_mut().zip(direct).zip(whole) {
+        *v = Vec3::select(w.cmplt(Vec3::ZERO), Vec3::ZERO, *v) + *d;
     }
     values
 }

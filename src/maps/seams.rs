@@ -205,6 +205,41 @@ pub fn mismatch(lm: &Lightmaps, samples: &[SeamSample]) -> f64 {
         / samples.len() as f64
 }
 
+/// [`stitch`] of `lm` with its light layers (`layers`, which sum to it):
+/// each layer moves by its own share of each step, and a texel channel
+/// that the whole map clamps at 0 is 0 in every layer, so the stitched
+/// layers still sum to the stitched map.
+pub fn stitch_layers(lm: &mut Lightmaps, layers: &mut [Lightmaps], samples: &[SeamSample], sweeps: u32) {
+    let (w, h) = (lm.width, lm.height);
+    for _ in 0..sweeps {
+        for s in samples {
+            let d = sample(lm, s.a) - sample(lm, s.b);
+            let ta = taps(s.a.1, w, h);
+            let tb = taps(s.b.1, w, h);
+            let norm: f32 = ta.iter().chain(tb.iter()).map(|t| t.1 * t.1).sum();
+            if norm <= 0.0 {
+                continue;
+            }
+            let steps: Vec<Vec3> = (layers.iter())
+                .map(|l| (sample(l, s.a) - sample(l, s.b)) / norm)
+                .collect();
+            let step = d / norm;
+            for (side, taps, sign) in [(s.a.0, &ta, -1.0f32), (s.b.0, &tb, 1.0)] {
+                for &(i, wt) in taps.iter() {
+                    let v = &mut lm.pages[side as usize][i];
+                    let moved = *v + step * (sign * wt);
+                    let clamped = moved.cmplt(Vec3::ZERO);
+                    *v = moved.max(Vec3::ZERO);
+                    for (l, k) in layers.iter_mut().zip(&steps) {
+                        let x = &mut l.pages[side as usize][i];
+                        *x = Vec3::select(clamped, Vec3::ZERO, *x + *k * (sign * wt));
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Makes both sides of every seam agree (`sweeps` relaxation sweeps, in a
 /// fixed order, so the result is deterministic).
 pub fn stitch(lm: &mut Lightmaps, samples: &[SeamSample], sweeps: u32) {

@@ -273,6 +273,63 @@ fn write_pages(
     Ok(pages)
 }
 
+/// Writes each light layer's pages (`lightmap_<page>_<layer>.exr`, and
+/// `.ktx2` in RGB9E5 unless `ktx2 = "off"`) and probes
+/// ([`probes::write_layer`]), adding their paths to `written`; returns the
+/// manifest's `layers` entry, `None` for a bake without layers.
+///
+/// # Errors
+/// [`Error::Io`] / [`Error::Encode`].
+fn write_layers(
+    out_dir: &Path,
+    bake: &crate::Bake,
+    written: &mut Vec<PathBuf>,
+) -> Result<Option<serde_json::Value>> {
+    let Some(layers) = &bake.layers else {
+        return Ok(None);
+    };
+    let ktx2_on = bake.config.ktx2 != crate::config::Ktx2Mode::Off;
+    let mut entries = Vec::new();
+    for (k, (name, lm)) in layers.names.iter().zip(&bake.maps.layers).enumerate() {
+        let mut pages = Vec::new();
+        for page in 0..lm.pages.len() {
+            let exr = format!("lightmap_{page}_{name}.exr");
+            write_exr(&out_dir.join(&exr), lm, page)?;
+            written.push(out_dir.join(&exr));
+            let ktx2 = ktx2_on.then(|| format!("lightmap_{page}_{name}.ktx2"));
+            if let Some(file) = &ktx2 {
+                let packed: Vec<u32> = lm.pages[page].iter().map(|v| ktx2::rgb9e5(*v)).collect();
+                let bytes =
+                    ktx2::ktx2_rgb9e5_zstd([lm.width, lm.height, 0], &packed, ktx2::ZSTD_LEVEL);
+                write_bytes_atomic(&out_dir.join(file), &bytes)?;
+                written.push(out_dir.join(file));
+            }
+            pages.push(serde_json::json!({ "page": page, "exr": exr, "ktx2": ktx2 }));
+        }
+        let probes = match (
+            &bake.probes,
+            bake.probes.as_ref().and_then(|p| p.layers.get(k)),
+        ) {
+            (Some(p), Some(sh_set)) => {
+                let (files, entry) = probes::write_layer(out_dir, p, (name, sh_set))?;
+                written.extend(files);
+                entry
+            }
+            _ => serde_json::Value::Null,
+        };
+        let (lights, materials, sky) = layers.members(bake.scene, k);
+        entries.push(serde_json::json!({
+            "name": name,
+            "lights": lights,
+            "materials": materials,
+            "sky": sky,
+            "pages": pages,
+            "probes": probes,
+        }));
+    }
+    Ok(Some(serde_json::Value::Array(entries)))
+}
+
 /// Writes the engine outputs into `out_dir`: `<stem>.baked.glb` (see
 /// [`baked`]), `lightmap_<page>_srgb.png` (value / scale, sRGB-encoded,
 /// the same images the .glb embeds) and `manifest.json` (per instance: the
@@ -371,6 +428,13 @@ pub fn write_engine_outputs(
         "shadowmask": mask.map_or(serde_json::Value::Null, |(_, w)| w.manifest),
         "sdf": sdf_entry,
     });
+    let mut manifest = manifest;
+    if let Some(layers) = write_layers(out_dir, bake, &mut written)? {
+        manifest["layers"] = layers;
+        manifest["layer_convention"] = serde_json::json!(
+            "each layer's pages and probes hold its lights' share of the bake, in the units of the combined files; the bake at weights w is the sum over layers of w (RGB) times the layer; the combined pages and the .glb are that sum at weight 1"
+        );
+    }
     let path = out_dir.join("manifest.json");
     let text = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::Encode {
         path: path.clone(),

@@ -19,13 +19,19 @@ use std::path::{Path, PathBuf};
 
 /// Grid `k`'s ambient cubes in Bevy's layout, packed in RGB9E5.
 pub fn volume_texels(probes: &Probes, k: usize) -> ([u32; 3], Vec<u32>) {
+    volume_texels_of(probes, &probes.sh, k)
+}
+
+/// [`volume_texels`] of the SH set `sh` (one per probe of `probes`: a
+/// light layer's).
+fn volume_texels_of(probes: &Probes, sh_set: &[sh::Sh9], k: usize) -> ([u32; 3], Vec<u32>) {
     let v = &probes.volumes[k];
     let r = v.resolution;
     let size = [r.x, 2 * r.y, 3 * r.z];
     let mut texels = vec![0u32; (size[0] * size[1] * size[2]) as usize];
     for i in 0..v.len() {
         let c = v.coords(i);
-        let cube = sh::ambient_cube(&probes.sh[v.first + i]);
+        let cube = sh::ambient_cube(&sh_set[v.first + i]);
         for axis in 0..3u32 {
             for neg in 0..2u32 {
                 let (x, y, z) = (c.x, c.y + r.y * neg, c.z + r.z * axis);
@@ -37,6 +43,46 @@ pub fn volume_texels(probes: &Probes, k: usize) -> ([u32; 3], Vec<u32>) {
     (size, texels)
 }
 
+/// Per probe 9 × RGB little-endian f32.
+fn sh_bytes(sh_set: &[sh::Sh9]) -> Vec<u8> {
+    let mut bin = Vec::with_capacity(sh_set.len() * 27 * 4);
+    for coeffs in sh_set {
+        for c in coeffs {
+            for v in c.to_array() {
+                bin.extend(v.to_le_bytes());
+            }
+        }
+    }
+    bin
+}
+
+/// Writes light layer `name`'s probes (`sh_set`, one per probe of
+/// `probes`): `probes_<name>.bin` as `probes.bin` and
+/// `probes_<k>_<name>.ktx2` as `probes_<k>.ktx2`. Returns the paths and
+/// the manifest's entry (the files' names).
+///
+/// # Errors
+/// [`crate::Error::Io`].
+pub fn write_layer(
+    out_dir: &Path,
+    probes: &Probes,
+    (name, sh_set): (&str, &[sh::Sh9]),
+) -> Result<(Vec<PathBuf>, serde_json::Value)> {
+    let bin_name = format!("probes_{name}.bin");
+    write_bytes_atomic(&out_dir.join(&bin_name), &sh_bytes(sh_set))?;
+    let mut written = vec![out_dir.join(&bin_name)];
+    let mut volumes = Vec::new();
+    for k in 0..probes.volumes.len() {
+        let (size, texels) = volume_texels_of(probes, sh_set, k);
+        let file = format!("probes_{k}_{name}.ktx2");
+        write_bytes_atomic(&out_dir.join(&file), &ktx2_rgb9e5(size, &texels))?;
+        written.push(out_dir.join(&file));
+        volumes.push(file);
+    }
+    let entry = serde_json::json!({ "binary": bin_name, "bevy_irradiance_volumes": volumes });
+    Ok((written, entry))
+}
+
 /// Writes `probes.json`, `probes.bin` and `probes_<k>.ktx2` into `out_dir`.
 /// Returns the paths and the manifest's `probes` entry.
 ///
@@ -44,14 +90,7 @@ pub fn volume_texels(probes: &Probes, k: usize) -> ([u32; 3], Vec<u32>) {
 /// [`crate::Error::Io`] / [`crate::Error::Encode`].
 pub fn write(out_dir: &Path, probes: &Probes) -> Result<(Vec<PathBuf>, serde_json::Value)> {
     let mut written = Vec::new();
-    let mut bin = Vec::with_capacity(probes.len() * 27 * 4);
-    for coeffs in &probes.sh {
-        for c in coeffs {
-            for v in c.to_array() {
-                bin.extend(v.to_le_bytes());
-            }
-        }
-    }
+    let bin = sh_bytes(&probes.sh);
     let bin_path = out_dir.join("probes.bin");
     write_bytes_atomic(&bin_path, &bin)?;
     written.push(bin_path);

@@ -27,6 +27,10 @@ pub struct Maps {
     pub seam_samples: u64,
     /// Mean |difference| across seams (RGB sum) before and after stitching.
     pub seam_mismatch: [f64; 2],
+    /// One set of pages per light layer ([`TexelLight::layers`]; empty
+    /// without layers), built as `lightmaps` with the same fill, dilation
+    /// and seam weights: they sum to `lightmaps`.
+    pub layers: Vec<Lightmaps>,
 }
 
 /// Pages from `light`: invalid texels filled, dilated by twice the padding,
@@ -34,11 +38,8 @@ pub struct Maps {
 pub fn build(s: &Surfaces, page_count: u32, light: &TexelLight, config: &BakeConfig) -> Maps {
     let texels = s.texels;
     let dilate = 2 * config.padding;
-    let mut values = light.values.clone();
     let rings = lightmap::fill_rings(config.patch_texels);
-    lightmap::fill_invalid(texels, &mut values, &light.valid, rings);
     let invalid_texels = light.valid.iter().filter(|v| !**v).count() as u64;
-    let mut lightmaps = lightmap::build(texels, values, page_count, dilate);
     let seam_samples = if config.stitch_seams {
         // A seam sample off every texel (padding) does not veto stitching.
         let valid = |page: u32, uv: Vec2| {
@@ -51,14 +52,28 @@ pub fn build(s: &Surfaces, page_count: u32, light: &TexelLight, config: &BakeCon
     } else {
         Vec::new()
     };
+    // Filled, paged, dilated and stitched: the same weights for the whole
+    // light and for each layer.
+    let pages = |values: &[Vec3]| {
+        let mut values = values.to_vec();
+        lightmap::fill_invalid(texels, &mut values, &light.valid, rings);
+        lightmap::build(texels, values, page_count, dilate)
+    };
+    let mut lightmaps = pages(&light.values);
+    let mut layers: Vec<Lightmaps> = light.layers.iter().map(|l| pages(&l.values)).collect();
     let before = seams::mismatch(&lightmaps, &seam_samples);
-    seams::stitch(&mut lightmaps, &seam_samples, 16);
+    if layers.is_empty() {
+        seams::stitch(&mut lightmaps, &seam_samples, 16);
+    } else {
+        seams::stitch_layers(&mut lightmaps, &mut layers, &seam_samples, 16);
+    }
     let after = seams::mismatch(&lightmaps, &seam_samples);
     // The texels' final values, as stitched.
-    for t in 0..texels.len() {
-        let [x, y] = texels.xy[t];
-        lightmaps.texel_values[t] =
-            lightmaps.pages[texels.page[t] as usize][(y * texels.width + x) as usize];
+    for lm in std::iter::once(&mut lightmaps).chain(&mut layers) {
+        for t in 0..texels.len() {
+            let [x, y] = texels.xy[t];
+            lm.texel_values[t] = lm.pages[texels.page[t] as usize][(y * texels.width + x) as usize];
+        }
     }
     let page = |v: Vec<Vec3>| lightmap::build(texels, v, page_count, dilate);
     let sh = light
@@ -76,6 +91,7 @@ pub fn build(s: &Surfaces, page_count: u32, light: &TexelLight, config: &BakeCon
         invalid_texels,
         seam_samples: seam_samples.len() as u64,
         seam_mismatch: [before, after],
+        layers,
     }
 }
 

@@ -14,7 +14,9 @@
 //! [`TexelLight`]. The lightmap stage ([`maps`]) turns it into pages (and
 //! the SH and AO pages); [`summary`] turns a [`Bake`] into the report.
 
+pub mod first_pass;
 pub mod incremental;
+pub mod layered;
 pub mod log;
 pub mod maps;
 pub mod progress;
@@ -72,6 +74,10 @@ pub struct Bake<'s> {
     pub probes: Option<Probes>,
     /// The signed distance field (`None` with `sdf = 0`).
     pub sdf: Option<crate::sdf::Sdf>,
+    /// The light layers (`None`: one lightmap of every light; see
+    /// [`crate::scene::layers`]). Their pages are [`Maps::layers`], their
+    /// probes [`Probes::layers`].
+    pub layers: Option<crate::scene::layers::Layers>,
     /// Wall time per stage.
     pub stages: Vec<StageTime>,
     /// Non-fatal problems.
@@ -114,6 +120,10 @@ pub fn bake_with<'s>(
     check_inputs(scene, config)?;
     // The sky map is read (and refused) before any work is done.
     let sky = config.load_sky()?;
+    let layers = crate::scene::layers::resolve(scene, config, sky.is_black())?;
+    if layers.is_some() {
+        layered::check(config, shard)?;
+    }
     let mut log = Log::new(progress, input_warnings(scene));
 
     log.begin("unwrap", 0);
@@ -161,7 +171,14 @@ pub fn bake_with<'s>(
         rays: &rays,
         burial: &burial,
     };
-    let light = transport::run(&surfaces, &atlas, config, &sky, &mut log, shard)?;
+    let light = transport::run(
+        &surfaces,
+        &atlas,
+        config,
+        (&sky, layers.as_ref()),
+        &mut log,
+        shard,
+    )?;
     // A phase-2 job stops here even where nothing was sliced (no gather).
     shard.checkpoint(2, false)?;
 
@@ -180,8 +197,22 @@ pub fn bake_with<'s>(
             mixed: &light.mixed,
             specs: &scene.probe_volumes,
             sky: &sky,
+            mask: None,
         };
-        let p = probes::bake(&inputs, config, &|n| progress.advance(n));
+        let mut p = probes::bake(&inputs, config, &|n| progress.advance(n));
+        // Each light layer's probes: the same rays over its share of the
+        // lights and of the lightmap.
+        if let Some(l) = &layers {
+            for (k, (lm, lt)) in maps.layers.iter().zip(&light.layers).enumerate() {
+                let inputs = probes::Inputs {
+                    texel_values: &lm.texel_values,
+                    mixed: &lt.mixed,
+                    mask: Some(crate::light::lights::Mask::of_layer(l, scene, k)),
+                    ..inputs
+                };
+                p.layers.push(probes::bake(&inputs, config, &|_| {}).sh);
+            }
+        }
         log.end("probes");
         p
     });
@@ -209,6 +240,7 @@ pub fn bake_with<'s>(
         shadowmask,
         probes,
         sdf,
+        layers,
         stages: log.stages,
         warnings: log.warnings,
     })

@@ -10,15 +10,15 @@
 //! come on demand ([`OnDemand`]) and its solution is completed by
 //! gathering sweeps ([`progressive::gather_sweeps`]).
 
+use super::first_pass::{direct_light, solve_matrix, DirectLight};
 use super::log::Log;
 use super::snapshot::Snapshots;
-use super::texel_light::{PatchLight, Rays, TexelLight};
+use super::texel_light::{LayerTexels, PatchLight, Rays, TexelLight};
 use crate::config::{self, BakeConfig, FormFactorMethod, Solver};
 use crate::error::{Error, Result};
 use crate::layout::atlas::Atlas;
-use crate::light::direct;
-use crate::light::lights;
-use crate::light::lights::{Directional, Lights, Mis};
+use crate::light::lights::Directional;
+use crate::scene::layers::Layers;
 use crate::maps::lightmap;
 use crate::pipeline::shard::Sharding;
 use crate::radiosity::denoise;
@@ -32,23 +32,6 @@ use crate::raycast::device;
 use crate::surface::Surfaces;
 use glam::Vec3;
 
-/// The direct-light stage's product.
-struct DirectLight {
-    /// Per material: emission sampled as direct light (else it enters the solve).
-    sampled: Vec<bool>,
-    lights: Lights,
-    mis: Mis,
-    /// The final gather's rays are the hemisphere samples of the lightmap's
-    /// direct light (the direct pass then casts a quarter as many).
-    gathering: bool,
-    /// The pass's two parts.
-    parts: direct::Direct,
-    /// Per texel, `parts.total()`.
-    texel: Vec<Vec3>,
-    /// Per patch (moved into [`PatchLight`] by the solve).
-    patch: Vec<Vec3>,
-}
-
 /// Radiosity with a final gather: texels' direct light sampled, indirect
 /// light from the patch solution read back through per-texel rays.
 ///
@@ -58,7 +41,7 @@ pub fn run(
     s: &Surfaces,
     atlas: &Atlas,
     config: &BakeConfig,
-    sky: &crate::light::sky::Sky,
+    (sky, layers): (&crate::light::sky::Sky, Option<&Layers>),
     log: &mut Log,
     shard: &Sharding,
 ) -> Result<TexelLight> {
@@ -89,7 +72,7 @@ pub fn run(
     log.end("form_factors");
 
     log.begin("direct", s.texels.len() as u64);
-    let mut direct = direct_light(s, config, sky, &advance, shard)?;
+    let mut direct = direct_light(s, config, sky, None, &advance, shard)?;
     log.end("direct");
     shard.checkpoint(1, false)?;
 
@@ -140,8 +123,13 @@ pub fn run(
     if config.final_gather == 0 {
         // The lightmap leaves the mixed lights' direct light out.
         let baked = direct.parts.baked();
+        let layers = match layers {
+            Some(l) => super::layered::first_passes(s, config, (sky, l), &patch_light, log)?,
+            None => Vec::new(),
+        };
         return Ok(TexelLight {
             valid: vec![true; first.len()],
+            layers,
             values: lightmap::first_pass(s.texels, s.patches, &baked, &indirect),
             direct: baked,
             mixed,
@@ -154,16 +142,26 @@ pub fn run(
     }
     let (pre, validity_rays) = pre_validity(s, config, &mut first, log);
     rays.validity = validity_rays;
+    // Each light layer's direct light and first pass, for the gather's
+    // hits to read beside the whole's.
+    let layer_inputs = match layers {
+        Some(l) => super::layered::inputs(s, config, (sky, l), &patch_light, &pre, log)?,
+        None => Vec::new(),
+    };
     let inputs = GatherInputs {
         sky,
         first: &first,
         pre: &pre,
         direct: &direct,
         patch_light: &patch_light,
+        layers: &layer_inputs,
     };
-    let g = gather_stage(s, atlas, config, inputs, gpu.as_deref(), shard, log)?;
+    let (g, layer_gathers) = gather_stage(s, atlas, config, inputs, gpu.as_deref(), shard, log)?;
     rays.gather = g.rays;
-    let light = gathered_light(s, atlas, config, direct, g, log);
+    let parts = (layer_inputs.into_iter().map(|l| l.direct))
+        .zip(layer_gathers)
+        .collect();
+    let light = gathered_light(s, atlas, config, (direct, g), parts, log);
     Ok(TexelLight {
         rays,
         mixed,
@@ -214,6 +212,9 @@ struct GatherInputs<'a> {
     sky: &'a crate::light::sky::Sky,
     first: &'a [Vec3],
     pre: &'a [bool],
+    /// The light layers' direct light and first passes (empty without
+    /// layers): their gathers read the whole gather's hits.
+    layers: &'a [super::layered::LayerInput],
     direct: &'a DirectLight,
     patch_light: &'a PatchLight,
 }
@@ -221,40 +222,46 @@ struct GatherInputs<'a> {
 /// The final gather ([`Gatherer`]) with its near field and, with
 /// `gather_nee`, its light samples, on `gpu` where there is one, or the
 /// slices of `shard`.
-fn gather_stage(
-    s: &Surfaces,
+fn gather_stage<'a>(
+    s: &'a Surfaces<'a>,
     atlas: &Atlas,
     config: &BakeConfig,
-    inputs: GatherInputs,
+    inputs: GatherInputs<'a>,
     gpu: Option<&dyn BatchCaster>,
     shard: &Sharding,
     log: &mut Log,
-) -> Result<Gathered> {
+) -> Result<(Gathered, Vec<Gathered>)> {
     let GatherInputs {
         sky,
         first,
         pre,
         direct,
         patch_light,
+        layers,
     } = inputs;
     let progress = log.progress();
     let advance = |n| progress.advance(n);
     log.begin("final_gather", s.texels.len() as u64);
-    let gatherer = gatherer(s, first, direct, config, sky);
-    // Close hits read the local lights at the point (see `NearField`):
-    // within `gather_near_field` texels of the atlas's density (lowered to
-    // fit `max_texels`) and the hit instance's texel scale.
-    let gatherer = if config.gather_near_field > 0.0 && direct.lights.has_local() {
-        gatherer.with_near(gather::NearField::new(
-            config.gather_near_field,
-            &texel_sizes(s, atlas),
-            &direct.parts.local,
-            pre,
-            &direct.lights,
-        ))
-    } else {
-        gatherer
-    };
+    let sizes = texel_sizes(s, atlas);
+    let near = |g: Gatherer<'a>, direct: &'a DirectLight| near_field(g, config, &sizes, direct, pre);
+    let gatherer = near(gatherer(s, first, direct, config, sky), direct);
+    if !layers.is_empty() {
+        // One pass: the layers read the whole gather's hits.
+        let layer_gatherers: Vec<Gatherer> = (layers.iter())
+            .map(|l| near(self::gatherer(s, &l.first, &l.direct, config, sky), &l.direct).for_layer(&l.mask))
+            .collect();
+        let both = match gpu.map(|g| gather::gather_layers(&gatherer, &layer_gatherers, Some(g), &advance)) {
+            Some(Ok(both)) => both,
+            other => {
+                if let Some(Err(e)) = other {
+                    log.warnings.push(format!("device = \"gpu\": {e:#}; final gather on the CPU"));
+                }
+                gather::gather_layers(&gatherer, &layer_gatherers, None, &advance)?
+            }
+        };
+        log.end("final_gather");
+        return Ok(both);
+    }
     // Light samples towards the solved bright patches, picked by the rows
     // of F (so only with a stored matrix).
     let lights = match &patch_light.form_factors {
@@ -289,14 +296,38 @@ fn gather_stage(
     shard.checkpoint(2, false)?;
     drop(lights);
     log.end("final_gather");
-    Ok(g)
+    Ok((g, Vec::new()))
+}
+
+/// `g` with its near field where there are local lights (see
+/// [`gather::NearField`]): close hits, within `gather_near_field` texels of
+/// the atlas's density (lowered to fit `max_texels`) and the hit
+/// instance's texel scale (`sizes`), read the local lights at the point.
+fn near_field<'a>(
+    g: Gatherer<'a>,
+    config: &BakeConfig,
+    sizes: &[f32],
+    direct: &'a DirectLight,
+    pre: &'a [bool],
+) -> Gatherer<'a> {
+    if config.gather_near_field > 0.0 && direct.lights.has_local() {
+        g.with_near(gather::NearField::new(
+            config.gather_near_field,
+            sizes,
+            &direct.parts.local,
+            pre,
+            &direct.lights,
+        ))
+    } else {
+        g
+    }
 }
 
 /// The final gather's settings over first pass `first`: its extras, the
 /// direct light it estimates with its own rays, and the direct light it
 /// does not (the adaptive gather's yardstick: with `gathering`, the
 /// punctual lights and light samples; else the whole direct pass).
-fn gatherer<'a>(
+pub(super) fn gatherer<'a>(
     s: &'a Surfaces<'a>,
     first: &'a [Vec3],
     direct: &'a DirectLight,
@@ -325,18 +356,6 @@ fn gatherer<'a>(
         direct.gathering.then_some((&direct.lights, direct.mis)),
     )
     .with_known(known)
-}
-
-impl DirectLight {
-    /// The mixed lights' direct light per texel; empty where the scene has
-    /// no mixed light.
-    fn mixed(&self) -> Vec<Vec3> {
-        if self.lights.punctual.iter().any(|l| l.mode.is_mixed()) {
-            self.parts.mixed.clone()
-        } else {
-            Vec::new()
-        }
-    }
 }
 
 /// The direct solver is O(n³): refuse more than `direct_max_patches`.
@@ -456,81 +475,6 @@ fn gpu_device(
     }
 }
 
-/// Direct light per texel and per patch. With the final gather on (and
-/// casting at least as many rays as the direct light's samples, as every
-/// preset does), its rays estimate the hemisphere part of the direct light
-/// (sky, emitters by MIS) for the lightmap, so this pass casts only a
-/// quarter as many hemisphere rays, for the first pass H₁ that the solve
-/// and the gather's hits read (Sponza: 30 % fewer rays).
-fn direct_light(
-    s: &Surfaces,
-    config: &BakeConfig,
-    sky: &crate::light::sky::Sky,
-    advance: &(dyn Fn(u64) + Sync),
-    shard: &Sharding,
-) -> Result<DirectLight> {
-    let sampled = lights::sampled_materials(s.scene, s.geometry, config.emitters);
-    let mut lights = Lights::new(s.scene, s.geometry, &sampled, sky.clone());
-    lights.sky_samples = config.sky_samples;
-    let gathering = config.final_gather > 0 && config.final_gather >= config.direct_samples;
-    let mis = Mis {
-        light: config.direct_samples,
-        hemisphere: if gathering {
-            config.final_gather
-        } else {
-            config.direct_samples
-        },
-    };
-    let hemisphere = if gathering {
-        (config.direct_samples / 4).max(4)
-    } else {
-        config.direct_samples
-    };
-    let settings = direct::TexelSettings {
-        samples: config.direct_samples,
-        hemisphere,
-        mis,
-        supersample: config.supersample,
-        seed: config.seed,
-    };
-    let n = s.texels.len();
-    // Slices of equal cost (in a sharded bake): a texel enclosed in a
-    // solid casts nothing.
-    let cost = || -> Vec<f64> {
-        (0..n)
-            .map(|t| if s.burial.enclosed(t) { 0.01 } else { 1.0 })
-            .collect()
-    };
-    let texels = shard.items(
-        "direct",
-        n,
-        |count| crate::pipeline::shard::balanced(&cost(), count),
-        |range| direct::texel_range(s, &lights, &settings, range, advance),
-    )?;
-    let parts = direct::assemble(texels);
-    let texel = parts.total();
-    let patch = (0..s.patches.len())
-        .map(|i| {
-            let sum: Vec3 = s
-                .patches
-                .texels_of(i)
-                .iter()
-                .map(|&t| texel[t as usize] * s.texels.area[t as usize])
-                .sum();
-            sum / s.patches.area[i]
-        })
-        .collect();
-    Ok(DirectLight {
-        sampled,
-        lights,
-        mis,
-        gathering,
-        parts,
-        texel,
-        patch,
-    })
-}
-
 /// The form-factor rows of a sharded bake ([`crate::pipeline::shard`]): a phase-1
 /// job casts its slice of patches' rows on the CPU; later jobs read them.
 fn sharded_form_factors(
@@ -643,19 +587,7 @@ fn solve_patches(
     let (tolerance, iterations) = (config.tolerance, config.max_iterations);
     let (solution, row_sums, stats) = match &form_factors {
         Some(ff) => {
-            let f = &ff.matrix;
-            let solution = match config.solver {
-                Solver::GaussSeidel => {
-                    solve::gauss_seidel::solve(f, &system, tolerance, iterations, advance)
-                }
-                Solver::Direct => solve::dense::solve(f, &system).ok_or_else(|| {
-                    Error::Limit(
-                        "the radiosity matrix is singular (an albedo of 1 in a closed scene?)"
-                            .into(),
-                    )
-                })?,
-                _ => solve::jacobi::solve(f, &system, tolerance, iterations, advance),
-            };
+            let solution = solve_matrix(&ff.matrix, &system, config, advance)?;
             (solution, ff.row_sums(), ff.stats.clone())
         }
         None => {
@@ -691,7 +623,7 @@ fn solve_patches(
 
 /// The final gather, its rays cast on `gpu` where there is one; on the
 /// CPU, with a warning, where it fails.
-fn final_gather(
+pub(super) fn final_gather(
     gatherer: &Gatherer,
     gpu: Option<&dyn BatchCaster>,
     advance: &(dyn Fn(u64) + Sync),
@@ -720,38 +652,61 @@ fn gathered_light(
     s: &Surfaces,
     atlas: &Atlas,
     config: &BakeConfig,
-    direct: DirectLight,
-    mut g: Gathered,
+    (mut direct, mut g): (DirectLight, Gathered),
+    parts: Vec<(DirectLight, Gathered)>,
     log: &mut Log,
 ) -> TexelLight {
     // `texel_direct` (reported) keeps the gather's direct part; `sharp`
     // is the rest, which the filter leaves alone.
-    let (sharp, mut gathered, texel_direct): (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>) = if direct.gathering
-    {
-        let sum = |a: &[Vec3]| a.iter().zip(&g.direct).map(|(x, h)| *x + *h).collect();
-        let (gathered, texel_direct) = (sum(&g.indirect), sum(&direct.parts.light));
-        (direct.parts.light, gathered, texel_direct)
-    } else {
-        let baked = direct.parts.baked();
-        (baked.clone(), std::mem::take(&mut g.indirect), baked)
+    let split = |direct: DirectLight, g: &mut Gathered| -> [Vec<Vec3>; 3] {
+        if direct.gathering {
+            let sum = |a: &[Vec3]| a.iter().zip(&g.direct).map(|(x, h)| *x + *h).collect();
+            let (gathered, texel_direct) = (sum(&g.indirect), sum(&direct.parts.light));
+            [direct.parts.light, gathered, texel_direct]
+        } else {
+            let baked = direct.parts.baked();
+            [baked.clone(), std::mem::take(&mut g.indirect), baked]
+        }
     };
+    let punctual = std::mem::take(&mut direct.parts.directional);
+    let [sharp, mut gathered, texel_direct] = split(direct, &mut g);
+    // The light layers': each its sharp part, its gathered part and its
+    // mixed lights' direct light.
+    let mut layers: Vec<([Vec<Vec3>; 2], Vec<Vec3>)> = Vec::with_capacity(parts.len());
+    for (d, mut lg) in parts {
+        let mixed = d.mixed();
+        let [sharp, gathered, _] = split(d, &mut lg);
+        layers.push(([sharp, gathered], mixed));
+    }
     if config.denoise {
         log.begin("denoise", 0);
         let texel_size = texel_sizes(s, atlas);
         let region = |t: usize| s.burial.region(s.texels, t);
-        denoise::atrous(
+        let mut layer_gathered: Vec<Vec<Vec3>> = (layers.iter_mut())
+            .map(|(p, _)| std::mem::take(&mut p[1]))
+            .collect();
+        denoise::atrous_layers(
             s.texels,
             &region,
-            &mut gathered,
+            (&mut gathered, &mut layer_gathered),
             &g.valid,
             &g.variance,
             &texel_size,
         );
+        for ((p, _), lg) in layers.iter_mut().zip(layer_gathered) {
+            p[1] = lg;
+        }
         log.end("denoise");
     }
-    let values = sharp.iter().zip(&gathered).map(|(d, i)| *d + *i).collect();
+    let add = |a: &[Vec3], b: &[Vec3]| -> Vec<Vec3> { a.iter().zip(b).map(|(d, i)| *d + *i).collect() };
+    let values = add(&sharp, &gathered);
+    let layers = (layers.into_iter())
+        .map(|([sharp, gathered], mixed)| LayerTexels {
+            values: add(&sharp, &gathered),
+            mixed,
+        })
+        .collect();
     let directional = (!g.directional.is_empty()).then(|| {
-        let punctual = &direct.parts.directional;
         (0..g.directional.len())
             .map(|t| std::array::from_fn(|axis| g.directional[t][axis] + punctual[t][axis]))
             .collect::<Vec<Directional>>()
@@ -763,6 +718,7 @@ fn gathered_light(
         directional,
         ao: (!g.ao.is_empty()).then_some(g.ao),
         variance: g.variance,
+        layers,
         rays: Rays::default(),
         mixed: Vec::new(),
         patch_light: None,
@@ -771,7 +727,7 @@ fn gathered_light(
 
 /// Per instance, the side of one of its texels in metres: the atlas's
 /// density (lowered to fit `max_texels`) times the instance's texel scale.
-fn texel_sizes(s: &Surfaces, atlas: &Atlas) -> Vec<f32> {
+pub(super) fn texel_sizes(s: &Surfaces, atlas: &Atlas) -> Vec<f32> {
     s.scene
         .instances
         .iter()

@@ -34,10 +34,24 @@ pub struct TexelLight {
     /// texels is the variance of its mean, which the denoiser does not
     /// change (it conserves each chart's power).
     pub variance: Vec<f32>,
+    /// Per light layer ([`crate::scene::layers`]; empty without layers),
+    /// its share of `values` and `mixed`: the same rays, validity and
+    /// filter weights, so the layers sum to the whole.
+    pub layers: Vec<LayerTexels>,
     /// Rays cast, per purpose.
     pub rays: Rays,
     /// Radiosity's patch-level products (`None` for the references).
     pub patch_light: Option<PatchLight>,
+}
+
+/// One light layer's share of a [`TexelLight`].
+#[derive(Clone, Debug, Default)]
+pub struct LayerTexels {
+    /// Its share of [`TexelLight::values`].
+    pub values: Vec<Vec3>,
+    /// Its share of [`TexelLight::mixed`] (empty where the scene has no
+    /// mixed light).
+    pub mixed: Vec<Vec3>,
 }
 
 /// Rays cast by light transport, per purpose.

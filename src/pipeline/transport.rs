@@ -13,11 +13,13 @@ use crate::layout::atlas::Atlas;
 use crate::light::direct;
 use crate::light::lights::{Lights, Mis};
 use crate::light::sky::Sky;
+use crate::scene::layers::Layers;
 use crate::surface::Surfaces;
 use crate::trace::{self, Tracer};
 use glam::Vec3;
 
-/// Light transport by `config.method`.
+/// Light transport by `config.method`, with its light `layers` apart
+/// where there are any (radiosity only; [`super::layered`]).
 ///
 /// # Errors
 /// Radiosity's: a direct solve refused or singular.
@@ -25,12 +27,12 @@ pub fn run(
     s: &Surfaces,
     atlas: &Atlas,
     config: &BakeConfig,
-    sky: &Sky,
+    (sky, layers): (&Sky, Option<&Layers>),
     log: &mut Log,
     shard: &crate::pipeline::shard::Sharding,
 ) -> Result<TexelLight> {
     match config.method {
-        Method::Radiosity => radiosity::run(s, atlas, config, sky, log, shard),
+        Method::Radiosity => radiosity::run(s, atlas, config, (sky, layers), log, shard),
         Method::Pathtrace => Ok(pathtrace(s, config, sky, log)),
         Method::Photon => photon(s, config, log),
     }
@@ -122,6 +124,7 @@ fn reference(values: Vec<Vec3>, valid: Vec<bool>, rays: u64) -> TexelLight {
         directional: None,
         ao: None,
         variance: Vec::new(),
+        layers: Vec::new(),
         rays: Rays {
             gather: rays,
             ..Rays::default()

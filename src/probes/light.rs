@@ -90,12 +90,13 @@ fn random_rotation(rng: &mut Stream) -> Quat {
 /// `sky_mis.light` samples of a sky map from probe `p` (a Hammersley set
 /// turned at random, through the map's luminance distribution), each
 /// unoccluded one added to `sh` with the light estimator's MIS weight
-/// against the sphere rays (power heuristic with counts). Returns the
+/// against the sphere rays (power heuristic with counts), its radiance
+/// times `scale` (a light layer's share of the sky). Returns the
 /// shadow rays cast.
 fn sky_samples(
     s: &Surfaces,
     map: &crate::light::sky::SkyMap,
-    p: Vec3,
+    (p, scale): (Vec3, f32),
     sky_mis: Mis,
     rng: &mut Stream,
     sh: &mut Sh9,
@@ -112,7 +113,7 @@ fn sky_samples(
         if s.rays.unoccluded(p, dir, f32::INFINITY) {
             let p_b = 1.0 / (4.0 * std::f32::consts::PI);
             let w = 1.0 - sky_mis.hemisphere_weight(pdf, p_b);
-            sh::add(sh, dir, l * w, 1.0 / (pdf * ms as f32));
+            sh::add(sh, dir, l * (w * scale), 1.0 / (pdf * ms as f32));
         }
     }
     cast
@@ -159,11 +160,16 @@ impl ProbeLight<'_> {
             cast += self.light_sample(p, net.point(k), mis, &mut sh) as u32;
         }
         if let Some(map) = map {
-            cast += sky_samples(self.s, map, p, sky_mis, &mut rng, &mut sh);
+            let scale = self.lights.sky_weight();
+            cast += sky_samples(self.s, map, (p, scale), sky_mis, &mut rng, &mut sh);
         }
         // Mixed lights' direct light is the engine's to draw.
-        for light in self.lights.punctual.iter().filter(|l| !l.mode.is_mixed()) {
+        for (i, light) in self.lights.punctual.iter().enumerate() {
+            if light.mode.is_mixed() {
+                continue;
+            }
             if let Some((e, to, dist)) = punctual_incident(light, p) {
+                let e = e * self.lights.punctual_weight(i);
                 if light.has_extent() {
                     // A sphere or sun disk: its visible fraction over its
                     // extent, the delta kept at its centre.
@@ -193,7 +199,7 @@ impl ProbeLight<'_> {
         let g = s.geometry;
         let (landing, hit) = s.trace(p, d);
         let Some(hit) = hit else {
-            let l = self.lights.sky.radiance(d);
+            let l = self.lights.sky.radiance(d) * self.lights.sky_weight();
             let w = match self.lights.sky.map() {
                 Some(map) if sky_mis.light > 0 => {
                     sky_mis.hemisphere_weight(map.pdf(d), 1.0 / (4.0 * std::f32::consts::PI))
@@ -212,7 +218,8 @@ impl ProbeLight<'_> {
             _ => Vec3::ZERO,
         };
         if g.ng_ws[tri].dot(d) < 0.0 && s.scene.materials[mat as usize].is_emissive() {
-            let le = s.scene.emission_at(mat, g.uv0_at(hit.tri, hit.u, hit.v));
+            let le = s.scene.emission_at(mat, g.uv0_at(hit.tri, hit.u, hit.v))
+                * self.lights.emission_weight(mat);
             if !self.sampled[mat as usize] {
                 l += le;
             } else if let Some(k) = self.lights.emitter_index(hit.tri) {
@@ -248,7 +255,8 @@ impl ProbeLight<'_> {
             return true;
         }
         let mat = g.material[e.tri as usize];
-        let le = s.scene.emission_at(mat, g.uv0_at(e.tri, e.u, e.v));
+        let le = s.scene.emission_at(mat, g.uv0_at(e.tri, e.u, e.v))
+            * self.lights.emission_weight(mat);
         let p_b = 1.0 / (4.0 * std::f32::consts::PI);
         let w_l = 1.0 - mis.hemisphere_weight(p_l, p_b);
         sh::add(sh, d, le, w_l / (mis.light as f32 * p_l));

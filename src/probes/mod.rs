@@ -15,7 +15,7 @@ pub mod placement;
 pub mod sh;
 
 use crate::config::BakeConfig;
-use crate::light::lights::{sampled_materials, Lights};
+use crate::light::lights::{sampled_materials, Lights, Mask};
 use crate::surface::Surfaces;
 use glam::Vec3;
 use light::ProbeLight;
@@ -41,6 +41,10 @@ pub struct Probes {
     pub unfilled: usize,
     /// Rays cast.
     pub rays: u64,
+    /// Per light layer ([`crate::scene::layers`]; empty without layers),
+    /// its share of `sh`: the same rays, validity and fill, so the layers
+    /// sum to `sh`.
+    pub layers: Vec<Vec<Sh9>>,
 }
 
 impl Probes {
@@ -186,6 +190,7 @@ impl Probes {
             coarsened: 1.0,
             placed: false,
             unfilled: json["unfilled_probes"].as_u64().unwrap_or(0) as usize,
+            layers: Vec::new(),
             rays: 0,
         })
     }
@@ -204,6 +209,9 @@ pub struct Inputs<'a> {
     pub sky: &'a crate::light::sky::Sky,
     /// The boxes the scene places (empty: one box over the scene).
     pub specs: &'a [VolumeSpec],
+    /// A light layer's share of each light (`None`: every light; see
+    /// [`Mask`]), with `texel_values` and `mixed` that layer's.
+    pub mask: Option<Mask>,
 }
 
 /// Bakes the probes (see the module doc). `advance` is called with probes
@@ -221,6 +229,7 @@ pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)
     let sampled = sampled_materials(s.scene, g, config.emitters);
     let mut lights = Lights::new(s.scene, g, &sampled, inputs.sky.clone());
     lights.sky_samples = config.sky_samples;
+    lights.mask = inputs.mask.clone();
     // What the surfaces reflect: the lightmap, plus the mixed lights'
     // direct light, which the lightmap leaves to the engine.
     let radiance = s
@@ -274,5 +283,6 @@ pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)
         placed: !inputs.specs.is_empty(),
         unfilled,
         rays,
+        layers: Vec::new(),
     }
 }

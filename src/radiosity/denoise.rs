@@ -33,6 +33,21 @@ pub fn atrous(
     variance: &[f32],
     texel_size: &[f32],
 ) {
+    atrous_layers(texels, region, (values, &mut []), valid, variance, texel_size);
+}
+
+/// [`atrous`] of `values` and, with the same weights, of its light layers
+/// (`layers`, which sum to `values`): every weight (the value guide and
+/// each chart's power scale included) is decided from `values`, so the
+/// filtered layers still sum to the filtered `values`.
+pub fn atrous_layers(
+    texels: &Texels,
+    region: &(dyn Fn(usize) -> u32 + Sync),
+    (values, layers): (&mut [Vec3], &mut [Vec<Vec3>]),
+    valid: &[bool],
+    variance: &[f32],
+    texel_size: &[f32],
+) {
     let before = chart_sums(texels, values);
     let mut variance = variance.to_vec();
     for pass in 0..3 {
@@ -46,16 +61,26 @@ pub fn atrous(
             })
             .collect();
         let current = values.to_vec();
-        let next: Vec<Vec3> = (0..texels.len())
-            .into_par_iter()
-            .map(|t| {
+        let current_layers: Vec<Vec<Vec3>> = layers.to_vec();
+        // Per texel, its value then its layers' values.
+        let stride = 1 + layers.len();
+        let mut next = vec![Vec3::ZERO; texels.len() * stride];
+        next.par_chunks_mut(stride).enumerate().for_each(|(t, out)| {
+                let own = |out: &mut [Vec3]| {
+                    out[0] = current[t];
+                    for (o, l) in out[1..].iter_mut().zip(&current_layers) {
+                        *o = l[t];
+                    }
+                };
                 if !valid[t] {
-                    return current[t];
+                    return own(out);
                 }
                 let [x, y] = texels.xy[t];
                 let (p, n) = (texels.p_ws[t], texels.n_ws[t]);
                 let lum = current[t].element_sum() / 3.0;
                 let (mut acc, mut wsum) = (Vec3::ZERO, 0.0f32);
+                let (first, acc_layers) = out.split_at_mut(1);
+                acc_layers.fill(Vec3::ZERO);
                 for (j, kj) in KERNEL.iter().enumerate() {
                     for (i, ki) in KERNEL.iter().enumerate() {
                         let dx = (i as i64 - 2) * step;
@@ -83,16 +108,26 @@ pub fn atrous(
                         let w = ki * kj * wn * wp * wl;
                         acc += current[u] * w;
                         wsum += w;
+                        for (a, l) in acc_layers.iter_mut().zip(&current_layers) {
+                            *a += l[u] * w;
+                        }
                     }
                 }
                 if wsum > 0.0 {
-                    acc / wsum
+                    first[0] = acc / wsum;
+                    for a in acc_layers.iter_mut() {
+                        *a /= wsum;
+                    }
                 } else {
-                    current[t]
+                    own(out);
                 }
-            })
-            .collect();
-        values.copy_from_slice(&next);
+            });
+        for (t, out) in next.chunks(stride).enumerate() {
+            values[t] = out[0];
+            for (l, x) in layers.iter_mut().zip(&out[1..]) {
+                l[t] = *x;
+            }
+        }
         // Each pass averages several samples: the noise left is smaller.
         for v in variance.iter_mut() {
             *v *= 0.25;
@@ -104,7 +139,11 @@ pub fn atrous(
     for (t, v) in values.iter_mut().enumerate() {
         let key = (texels.instance[t], texels.chart[t]);
         let (b, a) = (before[&key], after[&key]);
-        *v *= Vec3::select(a.cmpgt(Vec3::ZERO), b / a, Vec3::ONE);
+        let scale = Vec3::select(a.cmpgt(Vec3::ZERO), b / a, Vec3::ONE);
+        *v *= scale;
+        for l in layers.iter_mut() {
+            l[t] *= scale;
+        }
     }
 }
 

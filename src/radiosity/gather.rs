@@ -26,7 +26,7 @@
 //! chart. Partly buried texels are the burial planes' ([`crate::surface::burial`]).
 
 use crate::light::direct::{hemisphere_light, local_light_at};
-use crate::light::lights::{Directional, Lights, Mis};
+use crate::light::lights::{Directional, Lights, Mask, Mis};
 use crate::radiosity::patch_lights::{power, PatchLights};
 use crate::raycast::batch::BatchCaster;
 use crate::raycast::Hit;
@@ -111,6 +111,9 @@ pub struct Gathered {
     pub direct: Vec<Vec3>,
     /// Rays cast.
     pub rays: u64,
+    /// Cosine rays each texel read (what a light layer's gather reads
+    /// again, [`Gatherer::for_layer`]).
+    pub cast: Vec<u32>,
 }
 
 /// What the gather computes besides the indirect light, and its validity
@@ -283,6 +286,9 @@ pub struct Gatherer<'a> {
     /// Direct light re-read at close hits; `None`: every hit reads its
     /// texel's.
     near: Option<NearField<'a>>,
+    /// A light layer's gather ([`Gatherer::for_layer`]): its share of each
+    /// material's emission.
+    layer: Option<&'a Mask>,
 }
 
 impl<'a> Gatherer<'a> {
@@ -319,7 +325,16 @@ impl<'a> Gatherer<'a> {
             known: None,
             lights: None,
             near: None,
+            layer: None,
         }
+    }
+
+    /// One light layer's gather ([`crate::scene::layers`]; run by
+    /// [`gather_layers`]): hits read `mask`'s share of each material's
+    /// emission (the first pass and the lights are the layer's already).
+    pub fn for_layer(mut self, mask: &'a Mask) -> Self {
+        self.layer = Some(mask);
+        self
     }
 
     /// Per texel, the outgoing radiance a gather ray reads where it lands
@@ -412,6 +427,10 @@ impl<'a> Gatherer<'a> {
             } else {
                 material.emission
             };
+            let e = match self.layer {
+                Some(mask) => e * mask.material[m as usize],
+                None => e,
+            };
             if !self.sampled[m as usize] {
                 l += e;
             } else if self.extras.directional {
@@ -474,7 +493,20 @@ impl<'a> Gatherer<'a> {
     /// batched path had its own module: out of line it cost the Cornell
     /// bake 3.8 % more instructions.
     #[inline(always)]
-    fn texel(&self, t: usize, mut cast: impl FnMut(u32, Vec3, Vec3) -> Option<Hit>) -> TexelGather {
+    fn texel(&self, t: usize, cast: impl FnMut(u32, Vec3, Vec3) -> Option<Hit>) -> TexelGather {
+        self.texel_with(t, None, cast)
+    }
+
+    /// [`Gatherer::texel`], reading exactly `fixed` cosine rays where
+    /// given (a light layer's gather reads those the whole gather read:
+    /// its adaptive stops are decided once, from the whole).
+    #[inline(always)]
+    fn texel_with(
+        &self,
+        t: usize,
+        fixed: Option<u32>,
+        mut cast: impl FnMut(u32, Vec3, Vec3) -> Option<Hit>,
+    ) -> TexelGather {
         let (s, extras, rays) = (self.s, &self.extras, self.rays);
         if s.burial.enclosed(t) {
             // Every ray of the validity estimate met a back face: the texel
@@ -500,6 +532,9 @@ impl<'a> Gatherer<'a> {
         // replaced from its chart), so stop: texels inside walls are a
         // quarter of Sponza's. The adaptive gather stops at its checkpoints.
         let stop = |x: &Sums| {
+            if let Some(n) = fixed {
+                return x.cast >= n;
+            }
             too_many_back_faces(x.back, rays, extras.backface_tolerance)
                 || surely_buried(x.back, x.cast, extras.backface_tolerance)
                 || (adaptive
@@ -742,9 +777,11 @@ impl<'a> Gatherer<'a> {
             ao: Vec::new(),
             direct: Vec::new(),
             rays: 0,
+            cast: Vec::with_capacity(n),
         };
         for x in texels {
             gathered.rays += x.traced as u64;
+            gathered.cast.push(x.cast);
             gathered.indirect.push(x.mean);
             gathered.valid.push(x.valid);
             gathered.variance.push(x.variance);
@@ -760,6 +797,90 @@ impl<'a> Gatherer<'a> {
         }
         gathered
     }
+}
+
+/// The whole gather and its light layers' ([`Gatherer::for_layer`]) in
+/// one pass: each texel's rays are cast once, for the whole gather (on
+/// `gpu` where there is one), and each layer's gather reads the same hits,
+/// as many rays as the whole read. So the layers share the whole gather's
+/// rays and its adaptive stops, and sum to it. Returns the whole gather
+/// and the layers', in order.
+///
+/// # Errors
+/// The GPU caster failed.
+pub fn gather_layers(
+    whole: &Gatherer,
+    layers: &[Gatherer],
+    gpu: Option<&dyn BatchCaster>,
+    advance: &(dyn Fn(u64) + Sync),
+) -> crate::Result<(Gathered, Vec<Gathered>)> {
+    let s = whole.s;
+    let n = s.texels.len();
+    let per = whole.rays_per_texel().max(1);
+    let each = |t: usize, mut cast: Box<dyn FnMut(u32, Vec3, Vec3) -> Option<Hit> + '_>| {
+        // The whole gather's hits, by ray, for the layers to read again.
+        let mut seen: Vec<Option<Option<Hit>>> = vec![None; per];
+        let g = whole.texel(t, |k, o, d| {
+            let h = cast(k, o, d);
+            seen[k as usize] = Some(h);
+            h
+        });
+        let ls: Vec<TexelGather> = (layers.iter())
+            .map(|l| {
+                l.texel_with(t, Some(g.cast), |k, o, d| {
+                    seen[k as usize].unwrap_or_else(|| cast(k, o, d))
+                })
+            })
+            .collect();
+        (g, ls)
+    };
+    let mut texels: Vec<(TexelGather, Vec<TexelGather>)> = Vec::with_capacity(n);
+    match gpu {
+        Some(caster) => caster.cast_batches(
+            n,
+            per,
+            &|t, out| whole.rays_of(t, out),
+            &mut |items, _, hits| {
+                let start = items.start;
+                let done: Vec<_> = (items.into_par_iter().with_min_len(64))
+                    .map(|t| {
+                        let k0 = (t - start) * per;
+                        each(t, Box::new(move |k, _, _| hits[k0 + k as usize]))
+                    })
+                    .collect();
+                advance(done.len() as u64);
+                texels.extend(done);
+            },
+        )?,
+        None => {
+            let chunk = 256;
+            let parts: Vec<Vec<_>> = (0..n.div_ceil(chunk))
+                .into_par_iter()
+                .map(|c| {
+                    let out: Vec<_> = (c * chunk..((c + 1) * chunk).min(n))
+                        .map(|t| {
+                            each(t, Box::new(|_, o, d| s.rays.closest_hit(o, d, f32::INFINITY)))
+                        })
+                        .collect();
+                    advance(out.len() as u64);
+                    out
+                })
+                .collect();
+            texels.extend(parts.into_iter().flatten());
+        }
+    }
+    let mut per_layer: Vec<Vec<TexelGather>> = vec![Vec::with_capacity(n); layers.len()];
+    let mut wholes = Vec::with_capacity(n);
+    for (g, ls) in texels {
+        wholes.push(g);
+        for (v, l) in per_layer.iter_mut().zip(ls) {
+            v.push(l);
+        }
+    }
+    let layer_gathers = (layers.iter().zip(per_layer))
+        .map(|(l, v)| l.assemble(v))
+        .collect();
+    Ok((whole.assemble(wholes), layer_gathers))
 }
 
 /// A texel's lights ([`Gatherer::texel_lights`]).

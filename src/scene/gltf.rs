@@ -523,6 +523,7 @@ fn add_light(ctx: &Ctx, document: &gltf::Document, at: &NodeAt, scene: &mut Scen
         light.node_index = node.index();
         light.node_mode = extras.mode;
         light.mode = extras.mode.unwrap_or_default();
+        light.layer = extras.layer.clone();
         let directional = light.kind == LightKind::Directional;
         if let Some(r) = extras.radius {
             if directional {
@@ -543,6 +544,13 @@ fn add_light(ctx: &Ctx, document: &gltf::Document, at: &NodeAt, scene: &mut Scen
             }
         }
         scene.lights.push(light);
+    } else if extras.layer.is_some() {
+        // A layer names lights; on a mesh node it would silently do
+        // nothing (an emissive surface's layer is its material's).
+        return Err(ctx.invalid(
+            format!("{location}.extras.radbake.layer"),
+            "the node has no light (KHR_lights_punctual); an emissive surface takes its material's extras.radbake.layer",
+        ));
     } else if extras.mode.is_some() || extras.radius.is_some() || extras.angle.is_some() {
         scene.warnings.push(format!(
             "{location}.extras.radbake: mode, radius and angle are for a node with a light; this one has none, ignored"
@@ -603,6 +611,12 @@ fn mesh_extras(ctx: &Ctx, mesh: &gltf::Mesh, warnings: &mut Vec<String>) -> Resu
     for (key, v) in &obj {
         match key.as_str() {
             "texel_scale" => scale = Some(texel_scale(ctx, &at, v)?),
+            "layer" => {
+                return Err(ctx.invalid(
+                    format!("{at}.layer"),
+                    "a layer goes on a light's node or on an emissive material, not on a mesh",
+                ))
+            }
             other => warnings.push(format!(
                 "{at}: unknown key `{other}` ignored (known on a mesh: texel_scale)"
             )),
@@ -631,6 +645,8 @@ struct NodeExtras {
     cast_shadows: Option<bool>,
     /// `lightmap`: false gives the node no lightmap (lit by probes).
     lightmap: Option<bool>,
+    /// `layer`: the light layer of the node's light.
+    layer: Option<String>,
     /// Keys this version does not know (warned about).
     unknown: Vec<String>,
 }
@@ -709,11 +725,12 @@ fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeEx
                     ctx.invalid(format!("{at}.lightmap"), "must be true or false")
                 })?);
             }
+            "layer" => out.layer = Some(layer_name(ctx, &at, v)?),
             // Written by radbake on a baked file's shadowmask lights (the
             // channel it assigned); a bake assigns channels afresh.
             "shadowmask_channel" => {}
             other => out.unknown.push(format!(
-                "{at}: unknown key `{other}` ignored (known: angle, cast_shadows, dynamic, lightmap, mode, probe_volume, radius, shadowmask_channel, texel_scale)"
+                "{at}: unknown key `{other}` ignored (known: angle, cast_shadows, dynamic, layer, lightmap, mode, probe_volume, radius, shadowmask_channel, texel_scale)"
             )),
         }
     }
@@ -1362,7 +1379,60 @@ fn import_material(
             gltf::material::AlphaMode::Blend => Alpha::Mask { cutoff: 0.5 },
         },
         blend: material.alpha_mode() == gltf::material::AlphaMode::Blend,
+        layer: material_layer(
+            ctx,
+            material,
+            &location,
+            Vec3::from(emissive) * strength,
+            &mut scene.warnings,
+        )?,
     })
+}
+
+/// A material's `extras.radbake`: `{"layer": "<name>"}`, the light layer of
+/// its emission. A layer on a material that emits nothing is an error (it
+/// would put nothing in the layer); other keys are warned about.
+fn material_layer(
+    ctx: &Ctx,
+    material: &gltf::Material,
+    location: &str,
+    emission: Vec3,
+    warnings: &mut Vec<String>,
+) -> Result<Option<String>> {
+    let extras = format!("{location}.extras");
+    let Some((at, obj)) = radbake_object(ctx, material.extras().as_deref(), &extras)? else {
+        return Ok(None);
+    };
+    let mut layer = None;
+    for (key, v) in &obj {
+        match key.as_str() {
+            "layer" => {
+                if emission.max_element() <= 0.0 {
+                    return Err(ctx.invalid(
+                        format!("{at}.layer"),
+                        "the material emits nothing (emissiveFactor is black): a layer holds emitters",
+                    ));
+                }
+                layer = Some(layer_name(ctx, &at, v)?);
+            }
+            other => warnings.push(format!(
+                "{at}: unknown key `{other}` ignored (known on a material: layer)"
+            )),
+        }
+    }
+    Ok(layer)
+}
+
+/// A light layer's name under `at`: a plain identifier (see
+/// [`crate::config::valid_layer_name`]).
+fn layer_name(ctx: &Ctx, at: &str, v: &serde_json::Value) -> Result<String> {
+    match v.as_str() {
+        Some(name) if crate::config::valid_layer_name(name) => Ok(name.to_owned()),
+        _ => Err(ctx.invalid(
+            format!("{at}.layer"),
+            "must be a plain identifier (letters, digits, _; at most 32, not starting with a digit)",
+        )),
+    }
 }
 
 fn decode_image(ctx: &Ctx, texture: &gltf::Texture, buffers: &[Vec<u8>]) -> Result<Texture> {

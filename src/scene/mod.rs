@@ -6,6 +6,7 @@
 //! light intensity is W/sr (≙ cd); directional light intensity is W/m² (≙ lux).
 
 mod gltf;
+pub mod layers;
 pub mod light_modes;
 pub mod probe_volume;
 pub mod texture;
@@ -137,6 +138,9 @@ pub struct Material {
     /// Perfectly specular response, traced by the path tracer's Whitted-style
     /// paths (the radiosity bake treats every surface as Lambertian).
     pub specular: Specular,
+    /// The light layer of its emission (`extras.radbake.layer`; `None`:
+    /// the layer `static`). See [`crate::scene::layers`].
+    pub layer: Option<String>,
 }
 
 /// Perfectly specular materials the path tracer follows recursively.
@@ -172,6 +176,7 @@ impl Material {
             alpha: Alpha::Opaque,
             blend: false,
             specular: Specular::None,
+            layer: None,
         }
     }
 
@@ -229,6 +234,9 @@ pub struct Light {
     /// `extras.radbake.angle`, given in degrees: the real sun's is 0.53°):
     /// soft shadows. 0: a delta light.
     pub angle: f32,
+    /// The light layer (the node's `extras.radbake.layer`; `None`: the
+    /// layer `static`). See [`crate::scene::layers`].
+    pub layer: Option<String>,
 }
 
 impl Light {
@@ -253,6 +261,7 @@ impl Light {
             range: None,
             radius: 0.0,
             angle: 0.0,
+            layer: None,
         }
     }
 
