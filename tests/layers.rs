@@ -342,6 +342,137 @@ fn layer_files_are_listed_in_the_manifest() {
             "{f}"
         );
     }
+    combine_writes_the_weighted_sum(&out);
+}
+
+/// An EXR page's RGB pixels.
+fn read_exr(path: &std::path::Path) -> Vec<Vec3> {
+    exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |res, _| (res.width(), vec![Vec3::ZERO; res.width() * res.height()]),
+        |(w, px): &mut (usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
+        },
+    )
+    .unwrap()
+    .layer_data
+    .channel_data
+    .pixels
+    .1
+}
+
+fn f32s(path: &std::path::Path) -> Vec<f32> {
+    (std::fs::read(path).unwrap().chunks_exact(4))
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
+
+/// `radbake combine` on the bake in `out`: its page and probes are the
+/// layers' weighted sum (a layer not named keeps weight 1); at weight 1
+/// they are the bake's own, to rounding; an unknown layer, a negative
+/// weight or the bake folder as `--out` write nothing.
+fn combine_writes_the_weighted_sum(out: &std::path::Path) {
+    let comb = temp_dir("layers-combine");
+    let o = radbake()
+        .args(["combine", out.to_str().unwrap(), "lamp=2,1,0.5"])
+        .args(["--out", comb.to_str().unwrap(), "-q"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (ceiling, lamp) = (
+        read_exr(&out.join("lightmap_0_ceiling.exr")),
+        read_exr(&out.join("lightmap_0_lamp.exr")),
+    );
+    let page = read_exr(&comb.join("lightmap_0.exr"));
+    let w = Vec3::new(2.0, 1.0, 0.5);
+    let want: Vec<Vec3> = ceiling
+        .iter()
+        .zip(&lamp)
+        .map(|(c, l)| *c + w * *l)
+        .collect();
+    assert!(worst(&page, &want, 1e-6) <= 1e-6);
+    let (pc, pl, pb) = (
+        f32s(&out.join("probes_ceiling.bin")),
+        f32s(&out.join("probes_lamp.bin")),
+        f32s(&comb.join("probes.bin")),
+    );
+    assert_eq!(pb.len(), pc.len());
+    for (i, ((c, l), b)) in pc.iter().zip(&pl).zip(&pb).enumerate() {
+        let want = c + [2.0, 1.0, 0.5][i % 3] * l;
+        assert!(
+            (b - want).abs() <= 1e-6 * (1.0 + want.abs()),
+            "{i}: {b} {want}"
+        );
+    }
+    for f in [
+        "lightmap_0.ktx2",
+        "lightmap_0.png",
+        "probes.json",
+        "probes_0.ktx2",
+    ] {
+        assert!(comb.join(f).is_file(), "{f}");
+    }
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(comb.join("manifest.json")).unwrap()).unwrap();
+    assert!(manifest.get("layers").is_none());
+    assert_eq!(
+        manifest["combined"]["weights"]["lamp"],
+        json!([2.0, 1.0, 0.5])
+    );
+    assert_eq!(
+        manifest["combined"]["weights"]["ceiling"],
+        json!([1.0, 1.0, 1.0])
+    );
+    // At weight 1: the bake.
+    let one = temp_dir("layers-combine-one");
+    let status = radbake()
+        .args([
+            "combine",
+            out.to_str().unwrap(),
+            "--out",
+            one.to_str().unwrap(),
+            "-q",
+        ])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let (a, b) = (
+        read_exr(&one.join("lightmap_0.exr")),
+        read_exr(&out.join("lightmap_0.exr")),
+    );
+    assert!(worst(&a, &b, 1e-6) <= 1e-5, "{}", worst(&a, &b, 1e-6));
+    // Errors: one line, nothing written.
+    for (args, want) in [
+        (vec!["lampp=0"], "no layer `lampp`"),
+        (vec!["lamp=-1"], "lamp=-1"),
+        (vec!["lamp"], "NAME=W"),
+    ] {
+        let bad = temp_dir("layers-combine-bad").join("new");
+        let o = radbake()
+            .args(["combine", out.to_str().unwrap()])
+            .args(&args)
+            .args(["--out", bad.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(want), "{want}: {err}");
+        assert!(!bad.exists(), "{want}");
+    }
+    let o = radbake()
+        .args([
+            "combine",
+            out.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("the bake folder itself"),
+        "{err}"
+    );
+    assert!(out.join("lightmap_0_lamp.exr").is_file());
 }
 
 /// The Cornell box JSON with `edit` applied, written to `name`.

@@ -1,4 +1,4 @@
-//! The `radbake` subcommands, one file each: [`bake`], [`render`],
+//! The `radbake` subcommands, one file each: [`bake`], [`combine`], [`render`],
 //! [`measure`], [`preview`] and [`serve`], with [`progress`] (bars or JSON lines). This file holds what
 //! they share: viewpoint arguments, value parsers and exit codes.
 //!
@@ -7,6 +7,7 @@
 
 pub mod app;
 pub mod bake;
+pub mod combine;
 pub mod measure;
 #[cfg(feature = "preview")]
 pub mod preview;

@@ -585,52 +585,11 @@ fn radiance_signature(mut reader: impl BufRead) -> std::io::Result<impl Read> {
     Ok(std::io::Cursor::new(first).chain(reader))
 }
 
-/// OpenEXR, the first layer with R, G and B channels (alpha ignored) as
-/// f32: the header's size is checked before the pixels are decoded.
+/// An OpenEXR sky map ([`crate::util::files::read_exr_rgb`]), 2:1.
 fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
-    use exr::prelude::traits::*;
-    let header_error = |e| invalid(path, "header", format!("not a readable OpenEXR file: {e}"));
-    let file = File::open(path).map_err(io_error(path))?;
-    let meta = exr::meta::MetaData::read_from_unbuffered(file, false).map_err(header_error)?;
-    let has =
-        |h: &exr::meta::header::Header, name: &str| h.channels.list.iter().any(|c| c.name.eq(name));
-    let header = meta
-        .headers
-        .iter()
-        .find(|h| has(h, "R") && has(h, "G") && has(h, "B"));
-    let Some(header) = header.or(meta.headers.first()) else {
-        return Err(invalid(path, "header", "no image layer"));
-    };
-    let size = header.layer_size;
-    check_dimensions(path, size.width() as u64, size.height() as u64)?;
-    let file = File::open(path).map_err(io_error(path))?;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .rgba_channels(
-            // Another layer than the one checked could be read: then no
-            // more than the limit is allocated, and the size checked below.
-            |size, _| {
-                let fits = size.area() as u64 <= MAX_PIXELS;
-                (
-                    size.width(),
-                    vec![Vec3::ZERO; if fits { size.area() } else { 0 }],
-                )
-            },
-            |(w, pixels): &mut (usize, Vec<Vec3>), at, (r, g, b, _): (f32, f32, f32, f32)| {
-                if let Some(p) = pixels.get_mut(at.y() * *w + at.x()) {
-                    *p = Vec3::new(r, g, b);
-                }
-            },
-        )
-        .first_valid_layer()
-        .all_attributes()
-        .from_unbuffered(file)
-        .map_err(|e| invalid(path, "sky map", format!("could not decode OpenEXR: {e}")))?;
-    let size = image.layer_data.size;
-    let (w, h) = (size.width() as u64, size.height() as u64);
-    check_dimensions(path, w, h)?;
-    Ok((w as u32, h as u32, image.layer_data.channel_data.pixels.1))
+    let (w, h, pixels) = crate::util::files::read_exr_rgb(path, "sky map", MAX_WIDTH, MAX_PIXELS)?;
+    check_dimensions(path, w.into(), h.into())?;
+    Ok((w, h, pixels))
 }
 
 impl crate::config::BakeConfig {

@@ -4,6 +4,7 @@
 //! leaves a half-written file where a good one was.
 
 pub mod baked;
+pub mod combine;
 pub mod ktx2;
 pub mod png8;
 pub mod probes;

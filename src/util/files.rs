@@ -143,3 +143,84 @@ pub fn write_exr_rgb(path: &Path, width: u32, height: u32, values: &[Vec3]) -> R
             })
     })
 }
+
+/// Reads an OpenEXR image: the first layer with R, G and B channels
+/// (alpha ignored) as linear f32, row-major. The header's size is checked
+/// (not empty, at most `max_width` wide and `max_pixels` in all) before
+/// the pixels are decoded; `what` names the image in errors.
+///
+/// # Errors
+/// [`Error::Io`]; [`Error::Invalid`] for a file that is not a readable
+/// OpenEXR image or is empty; [`Error::Limit`] above the limits.
+pub fn read_exr_rgb(
+    path: &Path,
+    what: &str,
+    max_width: u64,
+    max_pixels: u64,
+) -> Result<(u32, u32, Vec<Vec3>)> {
+    use exr::prelude::traits::*;
+    let invalid = |message: String| Error::Invalid {
+        path: path.to_path_buf(),
+        location: what.into(),
+        message: message.replace(['\n', '\r'], " "),
+    };
+    let check = |w: u64, h: u64| {
+        if w == 0 || h == 0 {
+            return Err(invalid(format!("empty {what} ({w} × {h} pixels)")));
+        }
+        if w > max_width || w.saturating_mul(h) > max_pixels {
+            return Err(Error::Limit(format!(
+                "{}: {what} is {w} × {h}, above the limit of {max_width} pixels wide and \
+                 {max_pixels} pixels in all",
+                path.display()
+            )));
+        }
+        Ok(())
+    };
+    let open = || {
+        std::fs::File::open(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    };
+    let meta = exr::meta::MetaData::read_from_unbuffered(open()?, false)
+        .map_err(|e| invalid(format!("not a readable OpenEXR file: {e}")))?;
+    let has =
+        |h: &exr::meta::header::Header, name: &str| h.channels.list.iter().any(|c| c.name.eq(name));
+    let header = meta
+        .headers
+        .iter()
+        .find(|h| has(h, "R") && has(h, "G") && has(h, "B"));
+    let Some(header) = header.or(meta.headers.first()) else {
+        return Err(invalid("no image layer".into()));
+    };
+    let size = header.layer_size;
+    check(size.width() as u64, size.height() as u64)?;
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            // Another layer than the one checked could be read: then no
+            // more than the limit is allocated, and the size checked below.
+            |size, _| {
+                let fits = size.area() as u64 <= max_pixels;
+                (
+                    size.width(),
+                    vec![Vec3::ZERO; if fits { size.area() } else { 0 }],
+                )
+            },
+            |(w, pixels): &mut (usize, Vec<Vec3>), at, (r, g, b, _): (f32, f32, f32, f32)| {
+                if let Some(p) = pixels.get_mut(at.y() * *w + at.x()) {
+                    *p = Vec3::new(r, g, b);
+                }
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_unbuffered(open()?)
+        .map_err(|e| invalid(format!("could not decode OpenEXR: {e}")))?;
+    let size = image.layer_data.size;
+    let (w, h) = (size.width() as u64, size.height() as u64);
+    check(w, h)?;
+    Ok((w as u32, h as u32, image.layer_data.channel_data.pixels.1))
+}
