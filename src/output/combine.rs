@@ -277,11 +277,7 @@ pub fn combine(dir: &Path, weights: &[(String, Vec3)], out: &Path) -> Result<Vec
         serde_json::json!({"from": dir.display().to_string(), "weights": w}),
     );
     let path = out.join("manifest.json");
-    let text = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::Encode {
-        path: path.clone(),
-        message: e.to_string(),
-    })?;
-    write_bytes_atomic(&path, &text)?;
+    super::write_json(&path, &manifest)?;
     written.push(path);
     Ok(written)
 }

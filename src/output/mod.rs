@@ -437,13 +437,21 @@ pub fn write_engine_outputs(
         );
     }
     let path = out_dir.join("manifest.json");
-    let text = serde_json::to_vec_pretty(&manifest).map_err(|e| Error::Encode {
-        path: path.clone(),
-        message: e.to_string(),
-    })?;
-    write_bytes_atomic(&path, &text)?;
+    write_json(&path, &manifest)?;
     written.push(path);
     Ok(written)
+}
+
+/// Writes `value` as pretty-printed JSON, atomically.
+///
+/// # Errors
+/// [`Error::Encode`] or [`Error::Io`].
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    let text = serde_json::to_vec_pretty(value).map_err(|e| Error::Encode {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    write_bytes_atomic(path, &text)
 }
 
 #[cfg(test)]
