@@ -12,6 +12,8 @@
 //! - An HDRI sky in its own layer beside a sun, the same way.
 //! - The outputs: per-layer files listed in `manifest.json`, none without
 //!   layers; bad names and misplaced layers are one-line errors.
+//! - `radbake preview --layer`: the layers at weights against the preview
+//!   of a one-layer bake at those intensities.
 
 mod common;
 
@@ -25,29 +27,11 @@ use std::path::PathBuf;
 use std::process::Command;
 
 /// The Cornell box with its lamp's material in layer `ceiling` and a
-/// point light (node `bulb`) in layer `lamp`.
+/// point light (node `bulb`) in layer `lamp` (`scenes/cornell_layers.gltf`),
+/// copied into a fresh folder `name`.
 fn layered_cornell(name: &str) -> PathBuf {
-    let mut doc: Value =
-        serde_json::from_slice(&std::fs::read(scene_path("cornell_box.gltf")).unwrap()).unwrap();
-    doc["extensionsUsed"] = json!(["KHR_lights_punctual", "KHR_materials_emissive_strength"]);
-    doc["extensions"] = json!({"KHR_lights_punctual": {"lights": [
-        {"type": "point", "intensity": 0.05, "color": [1.0, 0.9, 0.8]}]}});
-    for m in doc["materials"].as_array_mut().unwrap() {
-        if m["name"] == "light" {
-            m["extras"] = json!({"radbake": {"layer": "ceiling"}});
-        }
-    }
-    let nodes = doc["nodes"].as_array_mut().unwrap();
-    nodes.push(json!({"name": "bulb", "translation": [0.28, 0.42, 0.2],
-        "extras": {"radbake": {"layer": "lamp"}},
-        "extensions": {"KHR_lights_punctual": {"light": 0}}}));
-    let bulb = nodes.len() - 1;
-    doc["scenes"][0]["nodes"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!(bulb));
     let path = temp_dir(name).join("cornell_layers.gltf");
-    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    std::fs::copy(scene_path("cornell_layers.gltf"), &path).unwrap();
     path
 }
 
@@ -555,4 +539,152 @@ fn misplaced_layers_and_bad_names_are_one_line_errors() {
     };
     let bake = radbake::bake(&scene, &off, &Silent).unwrap();
     assert!(bake.layers.is_none() && bake.maps.layers.is_empty());
+}
+
+/// Bakes `scene` into a fresh folder `name` with every ray cast and no
+/// denoising (so that a bake at other intensities is the layers' sum to
+/// rounding), `extra` added; the folder.
+fn bake_exactly(scene: &std::path::Path, name: &str, extra: &[&str]) -> PathBuf {
+    let out = temp_dir(name);
+    let run = radbake()
+        .args([
+            "bake",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "-q",
+        ])
+        .args([
+            "--texels-per-meter",
+            "24",
+            "--final-gather",
+            "32",
+            "--probe-budget",
+            "8",
+        ])
+        .args(["--gather-threshold", "0", "--denoise", "false"])
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    out
+}
+
+/// `radbake preview --headless --tone-map none` of `glb` from the box's
+/// camera, `extra` added, as linear RGB; `None` on a machine with no
+/// graphics adapter.
+fn preview_pixels(glb: &std::path::Path, extra: &[&str]) -> Option<Vec<Vec3>> {
+    let png = glb.with_extension(format!("{}.png", extra.join("_").replace(['=', ','], "-")));
+    let run = radbake()
+        .args([
+            "preview",
+            glb.to_str().unwrap(),
+            "--headless",
+            "--tone-map",
+            "none",
+        ])
+        .args([
+            "--camera",
+            "camera",
+            "--size",
+            "160x160",
+            "--out",
+            png.to_str().unwrap(),
+        ])
+        .args(extra)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    if !run.status.success() && stderr.contains("no graphics adapter") {
+        assert!(
+            std::env::var_os("RADBAKE_REQUIRE_GPU").is_none(),
+            "{stderr}"
+        );
+        eprintln!("SKIPPED (no graphics adapter): {stderr}");
+        return None;
+    }
+    assert!(run.status.success(), "{stderr}");
+    let img = image::open(&png).unwrap().to_rgb8();
+    let lin = |c: u8| radbake::scene::texture::srgb_to_linear(c as f32 / 255.0);
+    Some(
+        img.pixels()
+            .map(|p| Vec3::new(lin(p[0]), lin(p[1]), lin(p[2])))
+            .collect(),
+    )
+}
+
+/// (mean of a / mean of b, the 95th percentile of the per-pixel
+/// |a − b| / max(b, 1 % of b's mean), on the RGB mean): the browser and
+/// Bevy tests' measure.
+fn image_agreement(a: &[Vec3], b: &[Vec3]) -> (f32, f32) {
+    let lum = |v: &Vec3| v.element_sum() / 3.0;
+    let (sa, sb): (f32, f32) = (a.iter().map(lum).sum(), b.iter().map(lum).sum());
+    let floor = 0.01 * sb / b.len() as f32;
+    let mut d: Vec<f32> = (a.iter().zip(b))
+        .map(|(x, y)| (lum(x) - lum(y)).abs() / lum(y).max(floor))
+        .collect();
+    d.sort_by(f32::total_cmp);
+    (sa / sb, d[d.len() * 95 / 100])
+}
+
+/// `radbake preview --layer lamp=W` shows the bake at the lamp's weight W:
+/// for W = 1 the `.glb`'s own pages (the sum of the layers), for
+/// W = 0, 0.5 and 2 the preview of a bake with the bulb at those
+/// intensities (its layers at weight 1). An unknown layer is a one-line error.
+#[test]
+fn the_preview_shows_the_layers_at_their_weights() {
+    let path = layered_cornell("layers-preview");
+    let out = bake_exactly(&path, "layers-preview-out", &[]);
+    let glb = out.join("cornell_layers.baked.glb");
+    let Some(stock) = preview_pixels(&glb, &[]) else {
+        return;
+    };
+    let at_one = preview_pixels(&glb, &["--layer", "lamp=1"]).unwrap();
+    let (mean, p95) = image_agreement(&at_one, &stock);
+    eprintln!("lamp=1 against the .glb's pages: mean {mean:.5}, 95th percentile {p95:.4}");
+    // The .glb's pages are 8-bit sRGB, dithered, one scale per instance:
+    // their dark texels differ from the layers' half floats by their
+    // dither, pixel by pixel.
+    assert!((mean - 1.0).abs() < 0.015, "{mean} {p95}");
+    let doc: Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    for w in [0.0f32, 0.5, 2.0] {
+        let mut one = doc.clone();
+        let i = &mut one["extensions"]["KHR_lights_punctual"]["lights"][0]["intensity"];
+        *i = json!(i.as_f64().unwrap() * w as f64);
+        let scene = path.with_file_name(format!("one_layer_{w}.gltf"));
+        std::fs::write(&scene, serde_json::to_vec(&one).unwrap()).unwrap();
+        // Its layers at weight 1: its own bake, in the same half floats.
+        let bake = bake_exactly(&scene, &format!("layers-preview-{w}"), &[]);
+        let reference = preview_pixels(
+            &bake.join(format!("one_layer_{w}.baked.glb")),
+            &["--layer", "lamp=1"],
+        )
+        .unwrap();
+        let weighted = preview_pixels(&glb, &["--layer", &format!("lamp={w}")]).unwrap();
+        let (mean, p95) = image_agreement(&weighted, &reference);
+        eprintln!(
+            "lamp={w} against a bake at that intensity: mean {mean:.5}, 95th percentile {p95:.4}"
+        );
+        assert!(
+            (mean - 1.0).abs() < 0.015 && p95 < 0.02,
+            "lamp={w}: {mean} {p95}"
+        );
+    }
+    let run = radbake()
+        .args(["preview", glb.to_str().unwrap(), "--headless", "--out"])
+        .arg(out.join("never.png"))
+        .args(["--layer", "lantern=1"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("no layer `lantern`") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    assert!(!out.join("never.png").exists());
 }

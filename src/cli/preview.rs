@@ -50,6 +50,9 @@ pub struct PreviewArgs {
     /// Reach in metres of the distance-field ambient occlusion on probe-lit (dynamic) objects; 0 for none.
     #[arg(long, default_value_t = radbake::preview::options::DFAO_REACH)]
     pub dfao_reach: f32,
+    /// A light layer's weight, NAME=W or NAME=R,G,B (repeatable; layers not named keep 1): the lightmaps and probes shown are the layers' weighted sum (docs/layers.md).
+    #[arg(long = "layer", value_name = "NAME=W", value_parser = parse_layer_weight)]
+    pub layers: Vec<(String, glam::Vec3)>,
     /// Height (world y) of the sdf view's slice plane [default: none, under the field's box].
     #[arg(long, allow_negative_numbers = true)]
     pub sdf_slice: Option<f32>,
@@ -84,6 +87,7 @@ pub fn run(args: &PreviewArgs) -> Outcome {
         },
         sdf: args.sdf.clone(),
         watch: args.watch,
+        layers: args.layers.clone(),
     };
     radbake::preview::run(&opts).map_err(|e| {
         let code = match e.downcast_ref::<radbake::Error>() {
@@ -92,4 +96,9 @@ pub fn run(args: &PreviewArgs) -> Outcome {
         };
         (code, format!("{e:#}"))
     })
+}
+
+/// `--layer`'s value ([`radbake::output::combine::parse_weight`]).
+fn parse_layer_weight(pair: &str) -> Result<(String, glam::Vec3), String> {
+    radbake::output::combine::parse_weight(pair).map_err(|e| e.to_string())
 }

@@ -183,6 +183,39 @@ fn combined_probes(dir: &Path, layers: &[(String, Vec3, Value)]) -> Result<Optio
     Ok(Some(probes))
 }
 
+/// The layers of the bake in `dir` (its `manifest`) at `weights`, their
+/// pages (one per [`Lightmaps`]) and probes (`None` without probes).
+type Recombined = (Vec<(String, Vec3, Value)>, Vec<Lightmaps>, Option<Probes>);
+
+/// The bake in `dir` (its `manifest.json` read as `manifest`) at
+/// `weights`: its layers, and its pages and probes as the layers'
+/// weighted sum.
+fn recombine(dir: &Path, manifest: &Value, weights: &[(String, Vec3)]) -> Result<Recombined> {
+    let layers = weighted_layers(dir, manifest, weights)?;
+    let page_count = manifest["pages"].as_array().map_or(0, Vec::len);
+    let pages: Vec<Lightmaps> = (0..page_count)
+        .map(|page| combined_page(dir, &layers, page))
+        .collect::<Result<_>>()?;
+    let probes = combined_probes(dir, &layers)?;
+    Ok((layers, pages, probes))
+}
+
+/// The bake in `dir` at `weights` (layers not named keep weight 1): its
+/// lightmap pages (one page per [`Lightmaps`], irradiance / π per texel)
+/// and its probes (`None` for a bake without probes), each the layers'
+/// weighted sum. What `radbake preview --layer` shows.
+///
+/// # Errors
+/// As [`combine`]'s, before anything is written.
+pub fn recombined(
+    dir: &Path,
+    weights: &[(String, Vec3)],
+) -> Result<(Vec<Lightmaps>, Option<Probes>)> {
+    let manifest = read_json(dir, "manifest.json")?;
+    let (_, pages, probes) = recombine(dir, &manifest, weights)?;
+    Ok((pages, probes))
+}
+
 /// Recombines the light layers of the bake in `dir` at `weights` (layers
 /// not named keep weight 1) into `out` (see the module documentation).
 /// Everything is read and checked before anything is written. Returns the
@@ -207,12 +240,7 @@ pub fn combine(dir: &Path, weights: &[(String, Vec3)], out: &Path) -> Result<Vec
         });
     }
     let mut manifest = read_json(dir, "manifest.json")?;
-    let layers = weighted_layers(dir, &manifest, weights)?;
-    let page_count = manifest["pages"].as_array().map_or(0, Vec::len);
-    let pages: Vec<Lightmaps> = (0..page_count)
-        .map(|page| combined_page(dir, &layers, page))
-        .collect::<Result<_>>()?;
-    let probes = combined_probes(dir, &layers)?;
+    let (layers, pages, probes) = recombine(dir, &manifest, weights)?;
     std::fs::create_dir_all(out).map_err(|source| Error::Io {
         path: out.to_path_buf(),
         source,

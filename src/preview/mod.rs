@@ -67,7 +67,7 @@ pub fn run(opts: &Options) -> Result<()> {
     }
     let opts = &opts;
     let t = Instant::now();
-    let mut model = Model::load(&opts.scene)?;
+    let mut model = Model::load_weighted(&opts.scene, &opts.layers)?;
     if let Some(path) = &opts.sdf {
         model.field = Some(field::open(path)?);
     }

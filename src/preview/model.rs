@@ -25,7 +25,7 @@ use super::gpu::{self, Vertex};
 use super::probe_light;
 use crate::probes::Probes;
 use crate::scene::{Alpha, Scene, TextureRef};
-use anyhow::{anyhow, Context as _, Result};
+use anyhow::{anyhow, bail, Context as _, Result};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -52,6 +52,19 @@ pub struct Image {
     pub height: u32,
     /// Row-major RGBA8.
     pub rgba: Vec<u8>,
+}
+
+/// A lightmap page in linear floats, irradiance / π per texel: a
+/// light-layered bake's page recombined at the preview's layer weights
+/// ([`Model::load_weighted`]).
+#[derive(Clone, Debug)]
+pub struct LinearPage {
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Row-major RGB.
+    pub rgb: Vec<Vec3>,
 }
 
 /// A range of [`Model::vertices`] drawn with one material.
@@ -103,6 +116,11 @@ pub struct Model {
     pub materials: Vec<PreviewMaterial>,
     /// Lightmap pages (sRGB RGBA8).
     pub lightmaps: Vec<Image>,
+    /// Per page, the page at the preview's layer weights where they were
+    /// given ([`Model::load_weighted`]; drawn in place of
+    /// [`Model::lightmaps`], the materials' lightmap scale 1); empty
+    /// otherwise.
+    pub linear_pages: Vec<Option<LinearPage>>,
     /// Per page, the bake's `lightmap_<page>_debug.png` beside the `.glb`
     /// when it was written (`radbake bake --debug-maps`).
     pub debug_maps: Vec<Option<Image>>,
@@ -441,6 +459,39 @@ fn push_instance(
     }
 }
 
+/// The recombined `pages` of a layered bake as the preview's pages, each
+/// checked against the size of the `.glb`'s page it replaces.
+fn linear_pages(
+    pages: &[crate::maps::lightmap::Lightmaps],
+    glb: &[Image],
+) -> Result<Vec<Option<LinearPage>>> {
+    if pages.len() != glb.len() {
+        bail!(
+            "the bake's manifest.json lists {} lightmap pages, its .glb has {}",
+            pages.len(),
+            glb.len()
+        );
+    }
+    (pages.iter().zip(glb).enumerate())
+        .map(|(p, (lm, img))| {
+            if (lm.width, lm.height) != (img.width, img.height) {
+                bail!(
+                    "lightmap page {p}: the layers' pages are {} × {}, the .glb's {} × {}",
+                    lm.width,
+                    lm.height,
+                    img.width,
+                    img.height
+                );
+            }
+            Ok(Some(LinearPage {
+                width: lm.width,
+                height: lm.height,
+                rgb: lm.pages[0].clone(),
+            }))
+        })
+        .collect()
+}
+
 /// Where `Model::load` looks for a baked `.glb`'s probes: `probes.json` in
 /// its folder.
 pub fn probes_path(glb: &Path) -> PathBuf {
@@ -457,6 +508,19 @@ impl Model {
     /// `probes.json` exists but cannot be read (a one-line message naming
     /// the file).
     pub fn load(path: &Path) -> Result<Model> {
+        Self::load_weighted(path, &[])
+    }
+
+    /// [`Model::load`], with a light-layered bake's layers at `weights`
+    /// (`radbake preview --layer NAME=R,G,B`; layers not named keep 1):
+    /// its pages and probes the layers' weighted sum
+    /// ([`crate::output::combine::recombined`], read through the
+    /// `manifest.json` beside the `.glb`). No weights: the `.glb`'s pages.
+    ///
+    /// # Errors
+    /// As [`Model::load`]'s; and a weight naming no layer, a bake without
+    /// layers, or a layer page whose size is not the `.glb`'s page's.
+    pub fn load_weighted(path: &Path, weights: &[(String, Vec3)]) -> Result<Model> {
         let scene = crate::scene::load(path, &Default::default())
             .with_context(|| format!("cannot load {}", path.display()))?;
         let (moz, pages) = match &scene.source {
@@ -482,10 +546,18 @@ impl Model {
             })
             .collect();
         let probes_json = probes_path(path);
-        let probes = if probes_json.exists() {
+        let mut probes = if probes_json.exists() {
             Some(Probes::read(&probes_json)?)
         } else {
             None
+        };
+        let linear_pages = if weights.is_empty() {
+            Vec::new()
+        } else {
+            let dir = path.parent().unwrap_or(Path::new("."));
+            let (pages, weighted) = crate::output::combine::recombined(dir, weights)?;
+            probes = weighted.or(probes);
+            linear_pages(&pages, &lightmaps)?
         };
         let (mask_textures, channels) = match &scene.source {
             Some(src) => parse_shadowmasks(&src.json, &moz, pages.len()),
@@ -501,6 +573,14 @@ impl Model {
             .map(|l| channels.get(&l.node_index).copied())
             .collect();
         let mut model = Self::build(scene, &moz, lightmaps, probes);
+        for m in &mut model.materials {
+            if m.lightmap
+                .is_some_and(|p| matches!(linear_pages.get(p), Some(Some(_))))
+            {
+                m.gpu.lightmap_scale = 1.0;
+            }
+        }
+        model.linear_pages = linear_pages;
         model.debug_maps = debug_maps;
         model.shadowmasks = shadowmasks;
         model.light_channels = light_channels;
@@ -596,6 +676,7 @@ impl Model {
             materials,
             lightmaps,
             bounds,
+            linear_pages: Vec::new(),
             debug_maps: Vec::new(),
             shadowmasks: Vec::new(),
             light_channels: Vec::new(),

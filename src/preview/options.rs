@@ -165,6 +165,10 @@ pub struct Options {
     /// the bake's directory; the newest `.baked.glb` or `.snapshot.glb`
     /// is shown and reloaded whenever it changes.
     pub watch: bool,
+    /// A light-layered bake's layer weights (`--layer NAME=R,G,B`; layers
+    /// not named keep 1): the pages and probes shown are the layers'
+    /// weighted sum ([`super::model::Model::load_weighted`]).
+    pub layers: Vec<(String, glam::Vec3)>,
 }
 
 /// Picks the first viewpoint for `model` in an image of `aspect`.

@@ -144,6 +144,52 @@ fn srgb_texture(
         .create_view(&Default::default())
 }
 
+/// A linear page ([`super::model::LinearPage`]) as an `Rgba16Float`
+/// texture (filterable, as the sRGB pages are; half floats hold the
+/// page's values to 2⁻¹¹ relative).
+fn linear_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    label: &str,
+    page: &super::model::LinearPage,
+) -> wgpu::TextureView {
+    let texels: Vec<u16> = (page.rgb.iter())
+        .flat_map(|v| [v.x, v.y, v.z, 1.0])
+        .map(|x| half::f16::from_f32(x).to_bits())
+        .collect();
+    let size = wgpu::Extent3d {
+        width: page.width,
+        height: page.height,
+        depth_or_array_layers: 1,
+    };
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba16Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture: &texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        bytemuck::cast_slice(&texels),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(8 * page.width),
+            rows_per_image: Some(page.height),
+        },
+        size,
+    );
+    texture.create_view(&Default::default())
+}
+
 /// An RGBA8 texture, sRGB-decoded on sampling or not (data maps), with
 /// `levels` as its mip levels (level 0 first, each max(1, ⌊size / 2ⁿ⌋)).
 fn rgba8_texture(
@@ -906,15 +952,16 @@ impl Textures {
             .lightmaps
             .iter()
             .enumerate()
-            .map(|(i, l)| {
-                srgb_texture(
+            .map(|(i, l)| match model.linear_pages.get(i) {
+                Some(Some(page)) => linear_texture(device, queue, &format!("lightmap{i}"), page),
+                _ => srgb_texture(
                     device,
                     queue,
                     &format!("lightmap{i}"),
                     l.width,
                     l.height,
                     &l.rgba,
-                )
+                ),
             })
             .collect();
         // Debug maps (patches, validity; not colour data), and a

@@ -227,7 +227,7 @@ impl App {
         let Some(path) = w.changed() else {
             return;
         };
-        let mut model = match Model::load(&path) {
+        let mut model = match Model::load_weighted(&path, &self.opts.layers) {
             Ok(m) => m,
             Err(e) => {
                 eprintln!("warning: --watch: {}: {e:#}", path.display());
