@@ -58,6 +58,9 @@ use bevy::prelude::*;
 use bevy::world_serialization::WorldAssetRoot;
 use serde::Deserialize;
 
+pub mod layers;
+pub use layers::{Layer, RadbakeLayers, RadbakeLayersApplied, RadbakeLayersError};
+
 /// The factor that makes a default Bevy camera (`Exposure::BLENDER`, ev100
 /// 9.7) show a radbake bake at the preview's EV 0: 1.2 × 2^9.7.
 pub const DEFAULT_EXPOSURE: f32 = 998.0957;
@@ -88,7 +91,10 @@ impl Plugin for RadbakePlugin {
             .register_asset_loader(ManifestLoader)
             .insert_resource(self.clone())
             .add_systems(PostStartup, ambient_off_lightmapped)
-            .add_systems(Update, (spawn_baked_scenes, apply_bakes).chain());
+            .add_systems(
+                Update,
+                (spawn_baked_scenes, apply_bakes, layers::recombine_layers).chain(),
+            );
     }
 }
 
@@ -150,6 +156,9 @@ pub struct RadbakeManifest {
     pub instances: Vec<Instance>,
     /// The probe grids as Bevy irradiance volumes.
     pub volumes: Vec<Volume>,
+    /// The bake's light layers (empty for a bake without layers): what a
+    /// [`RadbakeLayers`] weighs.
+    pub layers: Vec<Layer>,
 }
 
 /// One baked node instance.
@@ -186,6 +195,24 @@ struct ManifestFile {
     pages: Vec<PageFile>,
     instances: Vec<Instance>,
     probes: Option<ProbesFile>,
+    #[serde(default)]
+    layers: Vec<LayerFile>,
+}
+
+#[derive(Deserialize)]
+struct LayerFile {
+    name: String,
+    #[serde(default)]
+    lights: Vec<String>,
+    #[serde(default)]
+    materials: Vec<String>,
+    pages: Vec<PageFile>,
+    probes: Option<LayerProbesFile>,
+}
+
+#[derive(Deserialize)]
+struct LayerProbesFile {
+    bevy_irradiance_volumes: Vec<String>,
 }
 
 #[derive(Deserialize)]
@@ -279,11 +306,54 @@ impl AssetLoader for ManifestLoader {
                 },
             });
         }
+        let mut layers = Vec::with_capacity(file.layers.len());
+        for l in file.layers {
+            // The layers' images are read on the CPU only.
+            let mut cpu = |name: &str| -> Result<Handle<Image>, ManifestError> {
+                Ok(load_context
+                    .load_builder()
+                    .with_settings(|s: &mut bevy::image::ImageLoaderSettings| {
+                        s.asset_usage = bevy::asset::RenderAssetUsages::MAIN_WORLD;
+                    })
+                    .load(relative(name)?))
+            };
+            let mut layer_pages = Vec::with_capacity(l.pages.len());
+            for (k, page) in l.pages.iter().enumerate() {
+                let name = page
+                    .ktx2
+                    .as_deref()
+                    .ok_or_else(|| fail(format!("layer `{}` page {k} has no KTX2 file", l.name)))?;
+                layer_pages.push(cpu(name)?);
+            }
+            let names = l
+                .probes
+                .map(|p| p.bevy_irradiance_volumes)
+                .unwrap_or_default();
+            if layer_pages.len() != pages.len() || names.len() != volumes.len() {
+                return Err(fail(format!(
+                    "layer `{}` has {} pages and {} volumes, the bake {} and {}",
+                    l.name,
+                    layer_pages.len(),
+                    names.len(),
+                    pages.len(),
+                    volumes.len()
+                )));
+            }
+            let layer_volumes = names.iter().map(|n| cpu(n)).collect::<Result<_, _>>()?;
+            layers.push(Layer {
+                name: l.name,
+                lights: l.lights,
+                materials: l.materials,
+                pages: layer_pages,
+                volumes: layer_volumes,
+            });
+        }
         Ok(RadbakeManifest {
             gltf,
             pages,
             instances: file.instances,
             volumes,
+            layers,
         })
     }
 

@@ -18,7 +18,9 @@ use bevy::render::render_resource::{TextureFormat, TextureUsages};
 use bevy::render::RenderPlugin;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
-use bevy_radbake::{RadbakeApplied, RadbakeBake, RadbakeFailed, RadbakePlugin};
+use bevy_radbake::{
+    RadbakeApplied, RadbakeBake, RadbakeFailed, RadbakeLayers, RadbakeLayersApplied, RadbakePlugin,
+};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -273,7 +275,17 @@ fn aim_camera(
 /// EV 0; linear RGB per pixel (the PNG's sRGB decoded). None without a
 /// graphics adapter.
 fn preview(glb: &Path, png: &Path, camera: &str) -> Option<Vec<[f32; 3]>> {
+    preview_at(glb, png, camera, &[])
+}
+
+/// [`preview`] of a layered bake at `layers` (`NAME=W` or `NAME=R,G,B`,
+/// as `radbake preview --layer` takes them).
+fn preview_at(glb: &Path, png: &Path, camera: &str, layers: &[&str]) -> Option<Vec<[f32; 3]>> {
     use radbake::preview::{Options, Settings, ToneMap, Viewpoint};
+    let layers = layers
+        .iter()
+        .map(|w| radbake::output::combine::parse_weight(w).unwrap())
+        .collect();
     let opts = Options {
         scene: glb.to_path_buf(),
         headless: true,
@@ -289,6 +301,7 @@ fn preview(glb: &Path, png: &Path, camera: &str) -> Option<Vec<[f32; 3]>> {
         },
         sdf: None,
         watch: false,
+        layers,
     };
     if let Err(e) = radbake::preview::run(&opts) {
         let text = format!("{e:#}");
@@ -611,5 +624,191 @@ fn indirect_lights_stay_on_for_lightmapped_meshes() {
             ("bulb_baked".to_owned(), false),
             ("bulb_live".to_owned(), true)
         ]
+    );
+}
+
+/// A layered bake's two renders in one Bevy app, and the frame times
+/// around the change of weights between them.
+struct LayeredRun {
+    first: Vec<[f32; 4]>,
+    second: Vec<[f32; 4]>,
+    /// Milliseconds per `App::update`: the 30 frames before the change,
+    /// then every frame from the change to 5 after the new weights were
+    /// applied.
+    before: Vec<f64>,
+    around: Vec<f64>,
+    /// The recombination task's milliseconds.
+    task_ms: f32,
+}
+
+/// Loads the bake in `dir` with `first` weights, renders it; sets
+/// `second`, renders again once they are applied.
+fn run_bevy_layers(dir: &Path, first: RadbakeLayers, second: RadbakeLayers) -> LayeredRun {
+    let mut app = App::new();
+    app.add_plugins(headless_plugins(dir).set(RenderPlugin {
+        synchronous_pipeline_compilation: true,
+        ..default()
+    }))
+    .add_plugins(ScheduleRunnerPlugin::default())
+    .add_plugins(RadbakePlugin::default())
+    .init_resource::<Captured>()
+    .insert_resource(ClearColor(Color::BLACK))
+    .add_systems(Update, aim_camera);
+    let weights = first.clone();
+    app.add_systems(
+        Startup,
+        move |mut commands: Commands,
+              assets: Res<AssetServer>,
+              mut images: ResMut<Assets<Image>>| {
+            let mut image = Image::new_target_texture(SIZE, SIZE, TextureFormat::Rgba16Float, None);
+            image.texture_descriptor.usage |= TextureUsages::COPY_SRC;
+            commands.insert_resource(Target(images.add(image)));
+            commands.spawn((RadbakeBake::load(&assets, ""), weights.clone()));
+        },
+    );
+    app.finish();
+    app.cleanup();
+    let captured = app.world().resource::<Captured>().clone();
+    let generation = |app: &mut App| {
+        let world = app.world_mut();
+        world
+            .query::<&RadbakeLayersApplied>()
+            .iter(world)
+            .next()
+            .map_or((0, 0.0), |a| (a.generation, a.task_ms))
+    };
+    let mut shots: Vec<Vec<[f32; 4]>> = Vec::new();
+    let (mut times, mut ready_at, mut changed_at, mut applied_at) = (Vec::new(), None, None, None);
+    let mut task_ms = 0.0;
+    for frame in 0..4000 {
+        let t = std::time::Instant::now();
+        app.update();
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        let (g, ms) = generation(&mut app);
+        if g == 1 && ready_at.is_none() {
+            ready_at = Some(frame);
+        }
+        if g == 2 && applied_at.is_none() {
+            applied_at = Some(frame);
+            task_ms = ms;
+        }
+        let shoot = [ready_at, applied_at]
+            .iter()
+            .any(|r| r.is_some_and(|r| frame == r + 60));
+        if shoot {
+            let world = app.world_mut();
+            let target = world.resource::<Target>().0.clone();
+            let sink = captured.0.clone();
+            world.spawn(Readback::texture(target)).observe(
+                move |event: On<ReadbackComplete>, mut commands: Commands| {
+                    let mut slot = sink.lock().unwrap();
+                    if slot.is_none() {
+                        *slot = Some(event.data.clone());
+                        commands.entity(event.entity).despawn();
+                    }
+                },
+            );
+        }
+        if let Some(bytes) = captured.0.lock().unwrap().take() {
+            shots.push(rgba16f(&bytes));
+            if shots.len() == 1 {
+                // 40 frames more before the change: a quiet baseline.
+                changed_at = Some(frame + 40);
+            }
+        }
+        if changed_at == Some(frame) {
+            let world = app.world_mut();
+            let mut layers = world.query::<&mut RadbakeLayers>();
+            *layers.single_mut(world).unwrap() = second.clone();
+        }
+        if shots.len() == 2 {
+            break;
+        }
+    }
+    assert_eq!(shots.len(), 2, "both renders within 4000 frames");
+    let (c, a) = (changed_at.unwrap() + 1, applied_at.unwrap());
+    LayeredRun {
+        second: shots.pop().unwrap(),
+        first: shots.pop().unwrap(),
+        before: times[c - 30..c].to_vec(),
+        around: times[c..=a + 5].to_vec(),
+        task_ms,
+    }
+}
+
+/// (mean of a / mean of b, 95th percentile of the per-pixel |a − b| /
+/// max(b, 1 % of b's mean)), on the RGB mean of linear pixels clamped to
+/// [0, 1] (the preview's PNG is).
+fn agreement(a: &[[f32; 4]], b: &[[f32; 3]]) -> (f64, f64) {
+    let lum = |p: &[f32]| p[..3].iter().map(|c| c.clamp(0.0, 1.0) as f64).sum::<f64>() / 3.0;
+    let (sa, sb): (f64, f64) = (
+        a.iter().map(|p| lum(p)).sum(),
+        b.iter().map(|p| lum(p)).sum(),
+    );
+    let floor = 0.01 * sb / b.len() as f64;
+    let mut d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (lum(x) - lum(y)).abs() / lum(y).max(floor))
+        .collect();
+    d.sort_by(f64::total_cmp);
+    (sa / sb, d[d.len() * 95 / 100])
+}
+
+/// `RadbakeLayers` in Bevy's renderer: the Cornell box with its point
+/// light in layer `lamp` (`scenes/cornell_layers.gltf`) at weight 0, then,
+/// in the same app, 2; each against `radbake preview --layer` of the same
+/// weight: mean within 3 %, 95th-percentile pixel difference ≤ 5 %. The
+/// frames from the change to the new weights' application are timed
+/// against the frames before it.
+#[test]
+fn layer_weights_recombine_as_the_preview_does() {
+    let _serial = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = temp_dir("layers");
+    bake(
+        &repo().join("scenes/cornell_layers.gltf"),
+        &dir,
+        40.0,
+        radbake::config::Ktx2Mode::Rgb9e5,
+    );
+    let glb = dir.join("scene.baked.glb");
+    let mut want = Vec::new();
+    for w in ["lamp=0", "lamp=2"] {
+        let Some(p) = preview_at(&glb, &dir.join(format!("preview_{w}.png")), "camera", &[w])
+        else {
+            return no_adapter("Bevy layers vs preview");
+        };
+        want.push(p);
+    }
+    let run = run_bevy_layers(
+        &dir,
+        RadbakeLayers::default().with("lamp", Vec3::ZERO),
+        RadbakeLayers::default().with("lamp", Vec3::splat(2.0)),
+    );
+    for (name, got, want) in [
+        ("lamp=0", &run.first, &want[0]),
+        ("lamp=2", &run.second, &want[1]),
+    ] {
+        save_png(got, &dir.join(format!("bevy_{name}.png")));
+        let (mean, p95) = agreement(got, want);
+        eprintln!(
+            "{name}: Bevy / preview mean {mean:.4}, 95th-percentile pixel difference {:.2} %",
+            100.0 * p95
+        );
+        assert!((mean - 1.0).abs() <= 0.03, "{name}: mean ratio {mean}");
+        assert!(p95 <= 0.05, "{name}: 95th percentile {p95}");
+    }
+    let median = |v: &[f64]| {
+        let mut v = v.to_vec();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let normal = median(&run.before);
+    let worst = run.around.iter().copied().fold(0.0, f64::max);
+    eprintln!(
+        "frames: median {normal:.2} ms before the change; {} frames from the change to 5 after the new weights, worst {worst:.2} ms ({:.2} ×); recombination task {:.2} ms",
+        run.around.len(),
+        worst / normal,
+        run.task_ms
     );
 }
