@@ -287,7 +287,7 @@ pub struct Gatherer<'a> {
     /// texel's.
     near: Option<NearField<'a>>,
     /// A light layer's gather ([`Gatherer::for_layer`]): its share of each
-    /// material's emission.
+    /// light.
     layer: Option<&'a Mask>,
 }
 
@@ -410,14 +410,19 @@ impl<'a> Gatherer<'a> {
     /// H₁, plus the surface's emission (front only) unless the direct light
     /// samples it; and that sampled emission apart (the directional part
     /// sees it).
+    ///
+    /// Also the emission that a light layer's read adds its share of
+    /// ([`LayerReads::read_ray`]): the front's emission where the direct
+    /// light does not sample it (zero elsewhere), and the hit's material.
     #[inline(always)]
-    fn read(&self, h: u32, hit: &Hit, dir: Vec3) -> (Vec3, Vec3) {
+    fn read(&self, h: u32, hit: &Hit, dir: Vec3) -> (Vec3, Vec3, (Vec3, u32)) {
         let g = self.s.geometry;
         let tri = hit.tri as usize;
         let m = g.material[tri];
         let mut l = self.reflected[h as usize];
         let front = g.ng_ws[tri].dot(dir) < 0.0;
         let mut sampled = Vec3::ZERO;
+        let mut unsampled = Vec3::ZERO;
         if front {
             // A surface that emits nothing is read without its texture
             // coordinates: one load fewer per hit.
@@ -427,17 +432,14 @@ impl<'a> Gatherer<'a> {
             } else {
                 material.emission
             };
-            let e = match self.layer {
-                Some(mask) => e * mask.material[m as usize],
-                None => e,
-            };
             if !self.sampled[m as usize] {
                 l += e;
+                unsampled = e;
             } else if self.extras.directional {
                 sampled = e;
             }
         }
-        (l, sampled)
+        (l, sampled, (unsampled, m))
     }
 
     /// Texel `t`'s lights, if its patch has any: the lights, the patch, and
@@ -497,14 +499,13 @@ impl<'a> Gatherer<'a> {
         self.texel_with(t, None, cast)
     }
 
-    /// [`Gatherer::texel`], reading exactly `fixed` cosine rays where
-    /// given (a light layer's gather reads those the whole gather read:
-    /// its adaptive stops are decided once, from the whole).
+    /// [`Gatherer::texel`] and, in the same pass over its rays, each light
+    /// layer's gather of `layers` (see [`gather_layers`]) into `out`.
     #[inline(always)]
     fn texel_with(
         &self,
         t: usize,
-        fixed: Option<u32>,
+        layers: Option<(&LayerReads, &mut Vec<TexelGather>)>,
         mut cast: impl FnMut(u32, Vec3, Vec3) -> Option<Hit>,
     ) -> TexelGather {
         let (s, extras, rays) = (self.s, &self.extras, self.rays);
@@ -512,6 +513,9 @@ impl<'a> Gatherer<'a> {
             // Every ray of the validity estimate met a back face: the texel
             // is inside a solid; it receives nothing (all zeros, invalid)
             // and is filled.
+            if let Some((l, out)) = layers {
+                out.extend(l.gatherers.iter().map(|_| TexelGather::default()));
+            }
             return TexelGather::default();
         }
         let nets = texel_nets(self.seed, PURPOSE, t);
@@ -532,9 +536,6 @@ impl<'a> Gatherer<'a> {
         // replaced from its chart), so stop: texels inside walls are a
         // quarter of Sponza's. The adaptive gather stops at its checkpoints.
         let stop = |x: &Sums| {
-            if let Some(n) = fixed {
-                return x.cast >= n;
-            }
             too_many_back_faces(x.back, rays, extras.backface_tolerance)
                 || surely_buried(x.back, x.cast, extras.backface_tolerance)
                 || (adaptive
@@ -556,6 +557,20 @@ impl<'a> Gatherer<'a> {
             rng: None,
             traced: 0,
         };
+        // Each layer's sums and near-field draws.
+        let mut layer_sums: Vec<(Sums, NearDraws)> = match &layers {
+            Some((l, _)) => (l.gatherers.iter())
+                .map(|_| {
+                    let draws = NearDraws {
+                        texel: t,
+                        rng: None,
+                        traced: 0,
+                    };
+                    (Sums::default(), draws)
+                })
+                .collect(),
+            None => Vec::new(),
+        };
         'rays: for k0 in (0..rays).step_by(GROUP) {
             if stop(&sums) {
                 break;
@@ -572,11 +587,13 @@ impl<'a> Gatherer<'a> {
             // What each hit reads, all loaded before any is used (the hit
             // texels' light is megabytes away; see `land_many`).
             let mut reads = [(Vec3::ZERO, Vec3::ZERO); GROUP];
+            let mut emitted = [(Vec3::ZERO, 0u32); GROUP];
             for i in 0..m {
                 if let (Landing::Texel(h), Some(hit)) = (landings[i], &hits[i]) {
                     let (_, _, dir, origin) = group[i];
-                    reads[i] = self.read(h, hit, dir);
-                    reads[i].0 += self.near_light(h, hit, (origin, dir), &mut near);
+                    let (l, sampled, e) = self.read(h, hit, dir);
+                    reads[i] = (l + self.near_light(h, hit, (origin, dir), &mut near), sampled);
+                    emitted[i] = e;
                 }
             }
             for i in 0..m {
@@ -585,8 +602,19 @@ impl<'a> Gatherer<'a> {
                 }
                 let ray = (k0 + i as u32, group[i]);
                 let met = (landings[i], hits[i], reads[i]);
-                self.read_ray(&mut sums, (&mut tl, &mut near), ray, met, &mut cast);
+                let (w, ray_light) = self.read_ray(&mut sums, (&mut tl, &mut near), ray, met, &mut cast);
+                if let Some((l, _)) = &layers {
+                    let met = (landings[i], hits[i], emitted[i]);
+                    l.read_ray(&mut layer_sums, group[i], met, (w, ray_light));
+                }
             }
+        }
+        if let Some((_, out)) = layers {
+            out.extend(layer_sums.into_iter().map(|(mut x, draws)| {
+                // The whole's validity, from the same rays.
+                x.back = sums.back;
+                x.finish(draws.traced, extras.backface_tolerance)
+            }));
         }
         sums.finish(traced + near.traced, extras.backface_tolerance)
     }
@@ -603,9 +631,10 @@ impl<'a> Gatherer<'a> {
         (k, (p, ng, dir, origin)): (u32, (Vec3, Vec3, Vec3, Vec3)),
         (landing, hit, (l, sampled)): (Landing, Option<Hit>, (Vec3, Vec3)),
         cast: &mut impl FnMut(u32, Vec3, Vec3) -> Option<Hit>,
-    ) {
+    ) -> (f32, Vec3) {
         let (s, extras) = (self.s, &self.extras);
         sums.cast += 1;
+        let mut mis = 1.0;
         // Radiance for the directional part: everything seen.
         let mut seen = Vec3::ZERO;
         let mut indirect = Vec3::ZERO;
@@ -624,6 +653,7 @@ impl<'a> Gatherer<'a> {
                     let pn = self.light_pdf(tl.lights, tl.patch, h, &hit, dir);
                     power(ng.dot(dir) * std::f32::consts::FRAC_1_PI, pn)
                 });
+                mis = w;
                 indirect = l * w;
                 seen = indirect + sampled;
             }
@@ -655,6 +685,7 @@ impl<'a> Gatherer<'a> {
         let whole = (indirect + ray_light).element_sum() / 3.0;
         sums.all += whole;
         sums.all_sq += whole * whole;
+        (mis, ray_light)
     }
 
     /// What light sample `ls`'s ray reads, and its density p_n: the
@@ -799,12 +830,84 @@ impl<'a> Gatherer<'a> {
     }
 }
 
+/// The light layers a whole gather reads in its pass ([`gather_layers`]):
+/// their gatherers ([`Gatherer::for_layer`]) and their reflected light
+/// ρ̄ × H₁, texel-major (`[h × K + k]`: one cache line serves every layer
+/// at a hit).
+struct LayerReads<'a> {
+    gatherers: &'a [Gatherer<'a>],
+    reflected: Vec<Vec3>,
+}
+
+impl<'a> LayerReads<'a> {
+    fn new(gatherers: &'a [Gatherer<'a>], n: usize) -> Self {
+        let mut reflected = Vec::with_capacity(n * gatherers.len());
+        for h in 0..n {
+            reflected.extend(gatherers.iter().map(|g| g.reflected[h]));
+        }
+        LayerReads {
+            gatherers,
+            reflected,
+        }
+    }
+
+    /// Adds one ray of the whole gather to every layer's sums: what it
+    /// read where it landed, each layer's share — its ρ̄ × H₁, its share of
+    /// the unsampled emission `e` of material `m` and its near field (as
+    /// [`Gatherer::read`] and [`Gatherer::near_light`] read for the layer)
+    /// — times the whole's MIS weight `w`; and the whole's hemisphere
+    /// direct light `ray_light` times the layer's share of what the ray
+    /// met (the sky where it escaped, the hit's emission otherwise: what
+    /// [`hemisphere_light`] scales by a layer's mask, so the product is
+    /// its value for the layer).
+    #[inline(always)]
+    fn read_ray(
+        &self,
+        sums: &mut [(Sums, NearDraws)],
+        (_, _, dir, origin): (Vec3, Vec3, Vec3, Vec3),
+        (landing, hit, (e, m)): (Landing, Option<Hit>, (Vec3, u32)),
+        (w, ray_light): (f32, Vec3),
+    ) {
+        let n = self.gatherers.len();
+        for (k, (g, (x, draws))) in self.gatherers.iter().zip(sums).enumerate() {
+            let Some(mask) = g.layer else { continue };
+            x.cast += 1;
+            let mut light = Vec3::ZERO;
+            if g.direct.is_some() {
+                let share = match &hit {
+                    None => mask.sky,
+                    Some(h) => mask.material[g.s.geometry.material[h.tri as usize] as usize],
+                };
+                light = ray_light * share;
+                x.light += light;
+            }
+            let mut indirect = Vec3::ZERO;
+            match (landing, hit) {
+                (Landing::Texel(h), Some(hit)) => {
+                    let l = self.reflected[h as usize * n + k] + e * mask.material[m as usize];
+                    let l = l + g.near_light(h, &hit, (origin, dir), draws);
+                    indirect = l * w;
+                }
+                (Landing::BackFace, _) => x.back += 1,
+                _ => {}
+            }
+            x.sum += indirect;
+            let whole = (indirect + light).element_sum() / 3.0;
+            x.all += whole;
+            x.all_sq += whole * whole;
+        }
+    }
+}
+
 /// The whole gather and its light layers' ([`Gatherer::for_layer`]) in
 /// one pass: each texel's rays are cast once, for the whole gather (on
-/// `gpu` where there is one), and each layer's gather reads the same hits,
-/// as many rays as the whole read. So the layers share the whole gather's
-/// rays and its adaptive stops, and sum to it. Returns the whole gather
-/// and the layers', in order.
+/// `gpu` where there is one), and every hit is read for the whole and for
+/// each layer at once ([`LayerReads`]). So the layers share the whole
+/// gather's rays and its adaptive stops, and sum to it. Returns the whole
+/// gather and the layers', in order.
+///
+/// The layers have no light samples of their own (`gather_nee` is not
+/// baked with layers): the whole's must have none either.
 ///
 /// # Errors
 /// The GPU caster failed.
@@ -814,24 +917,14 @@ pub fn gather_layers(
     gpu: Option<&dyn BatchCaster>,
     advance: &(dyn Fn(u64) + Sync),
 ) -> crate::Result<(Gathered, Vec<Gathered>)> {
+    debug_assert!(whole.lights.is_none() && layers.iter().all(|l| l.layer.is_some()));
     let s = whole.s;
     let n = s.texels.len();
     let per = whole.rays_per_texel().max(1);
-    let each = |t: usize, mut cast: Box<dyn FnMut(u32, Vec3, Vec3) -> Option<Hit> + '_>| {
-        // The whole gather's hits, by ray, for the layers to read again.
-        let mut seen: Vec<Option<Option<Hit>>> = vec![None; per];
-        let g = whole.texel(t, |k, o, d| {
-            let h = cast(k, o, d);
-            seen[k as usize] = Some(h);
-            h
-        });
-        let ls: Vec<TexelGather> = (layers.iter())
-            .map(|l| {
-                l.texel_with(t, Some(g.cast), |k, o, d| {
-                    seen[k as usize].unwrap_or_else(|| cast(k, o, d))
-                })
-            })
-            .collect();
+    let reads = LayerReads::new(layers, n);
+    let each = |t: usize, cast: &mut dyn FnMut(u32, Vec3, Vec3) -> Option<Hit>| {
+        let mut ls = Vec::with_capacity(layers.len());
+        let g = whole.texel_with(t, Some((&reads, &mut ls)), cast);
         (g, ls)
     };
     let mut texels: Vec<(TexelGather, Vec<TexelGather>)> = Vec::with_capacity(n);
@@ -845,7 +938,7 @@ pub fn gather_layers(
                 let done: Vec<_> = (items.into_par_iter().with_min_len(64))
                     .map(|t| {
                         let k0 = (t - start) * per;
-                        each(t, Box::new(move |k, _, _| hits[k0 + k as usize]))
+                        each(t, &mut |k, _, _| hits[k0 + k as usize])
                     })
                     .collect();
                 advance(done.len() as u64);
@@ -858,9 +951,7 @@ pub fn gather_layers(
                 .into_par_iter()
                 .map(|c| {
                     let out: Vec<_> = (c * chunk..((c + 1) * chunk).min(n))
-                        .map(|t| {
-                            each(t, Box::new(|_, o, d| s.rays.closest_hit(o, d, f32::INFINITY)))
-                        })
+                        .map(|t| each(t, &mut |_, o, d| s.rays.closest_hit(o, d, f32::INFINITY)))
                         .collect();
                     advance(out.len() as u64);
                     out
