@@ -922,12 +922,19 @@ pub fn gather_layers(
     let n = s.texels.len();
     let per = whole.rays_per_texel().max(1);
     let reads = LayerReads::new(layers, n);
-    let each = |t: usize, cast: &mut dyn FnMut(u32, Vec3, Vec3) -> Option<Hit>| {
-        let mut ls = Vec::with_capacity(layers.len());
-        let g = whole.texel_with(t, Some((&reads, &mut ls)), cast);
-        (g, ls)
+    // Per chunk of texels: the whole's gathers, and the layers' (texel-
+    // major, `[i × K + k]`).
+    type Part = (Vec<TexelGather>, Vec<TexelGather>);
+    let chunk_of = |ts: &mut dyn Iterator<Item = usize>,
+                    cast: &dyn Fn(usize, u32, Vec3, Vec3) -> Option<Hit>|
+     -> Part {
+        let (mut wholes, mut ls) = (Vec::new(), Vec::new());
+        for t in ts {
+            wholes.push(whole.texel_with(t, Some((&reads, &mut ls)), |k, o, d| cast(t, k, o, d)));
+        }
+        (wholes, ls)
     };
-    let mut texels: Vec<(TexelGather, Vec<TexelGather>)> = Vec::with_capacity(n);
+    let mut parts: Vec<Part> = Vec::new();
     match gpu {
         Some(caster) => caster.cast_batches(
             n,
@@ -935,43 +942,40 @@ pub fn gather_layers(
             &|t, out| whole.rays_of(t, out),
             &mut |items, _, hits| {
                 let start = items.start;
-                let done: Vec<_> = (items.into_par_iter().with_min_len(64))
-                    .map(|t| {
-                        let k0 = (t - start) * per;
-                        each(t, &mut |k, _, _| hits[k0 + k as usize])
+                let cast = |t: usize, k: u32, _, _| hits[(t - start) * per + k as usize];
+                let done: Vec<Part> = (items.into_par_iter().with_min_len(64))
+                    .fold_chunks(64, Vec::new, |mut v, t| {
+                        v.push(t);
+                        v
                     })
+                    .map(|ts| chunk_of(&mut ts.into_iter(), &cast))
                     .collect();
-                advance(done.len() as u64);
-                texels.extend(done);
+                advance(done.iter().map(|p| p.0.len() as u64).sum());
+                parts.extend(done);
             },
         )?,
         None => {
             let chunk = 256;
-            let parts: Vec<Vec<_>> = (0..n.div_ceil(chunk))
+            let cast = |_, _, o, d| s.rays.closest_hit(o, d, f32::INFINITY);
+            parts = (0..n.div_ceil(chunk))
                 .into_par_iter()
                 .map(|c| {
-                    let out: Vec<_> = (c * chunk..((c + 1) * chunk).min(n))
-                        .map(|t| each(t, &mut |_, o, d| s.rays.closest_hit(o, d, f32::INFINITY)))
-                        .collect();
-                    advance(out.len() as u64);
-                    out
+                    let part = chunk_of(&mut (c * chunk..((c + 1) * chunk).min(n)), &cast);
+                    advance(part.0.len() as u64);
+                    part
                 })
                 .collect();
-            texels.extend(parts.into_iter().flatten());
         }
     }
-    let mut per_layer: Vec<Vec<TexelGather>> = vec![Vec::with_capacity(n); layers.len()];
-    let mut wholes = Vec::with_capacity(n);
-    for (g, ls) in texels {
-        wholes.push(g);
-        for (v, l) in per_layer.iter_mut().zip(ls) {
-            v.push(l);
-        }
-    }
-    let layer_gathers = (layers.iter().zip(per_layer))
-        .map(|(l, v)| l.assemble(v))
+    // Each layer's gathers, then (the layers' parts freed) the whole's.
+    let k = layers.len();
+    let layer_gathers = (layers.iter().enumerate())
+        .map(|(i, l)| l.assemble(parts.iter().flat_map(|(_, ls)| ls.iter().skip(i).step_by(k).copied())))
         .collect();
-    Ok((whole.assemble(wholes), layer_gathers))
+    for part in &mut parts {
+        part.1 = Vec::new();
+    }
+    Ok((whole.assemble(parts.into_iter().flat_map(|(w, _)| w)), layer_gathers))
 }
 
 /// A texel's lights ([`Gatherer::texel_lights`]).
