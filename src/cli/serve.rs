@@ -56,6 +56,16 @@ const FILES: &[(&str, &str, &[u8])] = &[
         include_bytes!("../../web/vendor/three/examples/jsm/loaders/GLTFLoader.js"),
     ),
     (
+        "/vendor/three/examples/jsm/loaders/EXRLoader.js",
+        "text/javascript",
+        include_bytes!("../../web/vendor/three/examples/jsm/loaders/EXRLoader.js"),
+    ),
+    (
+        "/vendor/three/examples/jsm/libs/fflate.module.js",
+        "text/javascript",
+        include_bytes!("../../web/vendor/three/examples/jsm/libs/fflate.module.js"),
+    ),
+    (
         "/vendor/three/examples/jsm/controls/OrbitControls.js",
         "text/javascript",
         include_bytes!("../../web/vendor/three/examples/jsm/controls/OrbitControls.js"),

@@ -49,6 +49,23 @@ pub fn direct_at(
     hemisphere: &[(Vec3, Vec3)],
     rng: &mut Stream,
 ) -> TexelDirect {
+    direct_routed(s, lights, mis, (punctual_points, points, hemisphere), rng, &mut [])
+}
+
+/// [`direct_at`], and in the same pass each light layer's share
+/// ([`Routed`]): every contribution the whole texel receives is added,
+/// times the layer's share of its light, to each layer that holds the
+/// light. A layer's part is then bit for bit what [`direct_at`] over the
+/// layer's masked lights gives (the same rays and draws, each value the
+/// same product), without casting the rays again.
+pub fn direct_routed(
+    s: &Surfaces,
+    lights: &Lights,
+    mis: Mis,
+    (punctual_points, points, hemisphere): (&[(Vec3, Vec3)], &[(Vec3, Vec3)], &[(Vec3, Vec3)]),
+    rng: &mut Stream,
+    layers: &mut [Routed],
+) -> TexelDirect {
     let g = s.geometry;
     let mut h = Vec3::ZERO;
     let mut mixed = Vec3::ZERO;
@@ -63,11 +80,24 @@ pub fn direct_at(
     for &(p, n) in punctual_points {
         for (i, light) in lights.punctual.iter().enumerate() {
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
+                if lights.punctual_weight(i) == 0.0 {
+                    // Not this layer's: the same draws, no ray.
+                    if light.has_extent() {
+                        pass_visibility(rng);
+                    }
+                    continue;
+                }
                 let (visible, cast) =
                     light_visibility(s.rays, light, &[(p, n, 1.0, dir, dist)], rng);
                 rays += cast;
                 if visible <= 0.0 {
                     continue;
+                }
+                for r in layers.iter_mut() {
+                    let share = r.lights.punctual_weight(i);
+                    if share != 0.0 {
+                        r.punctual(light, (value * (visible * share)) * w);
+                    }
                 }
                 let value = value * (visible * lights.punctual_weight(i));
                 if light.is_local() {
@@ -108,10 +138,16 @@ pub fn direct_at(
     // where visibility depends on both (a plate seeing the sky past a
     // floor's edge read 4.7 % low at 64 samples).
     let perm = rng.permutation(nh);
+    // A light layer that holds neither the sky nor an emitter: the rays'
+    // draws, no rays.
+    let dark = lights.hemisphere_dark();
     for k in 0..nh {
         let (p, n) = hemisphere[perm[k as usize] as usize];
         let origin = offset_ray_origin(p, n);
         let dir = to_world(cosine_hemisphere(stratified(k, nh, rng.next_vec2())), n);
+        if dark {
+            continue;
+        }
         rays += 1;
         let hit = s.rays.closest_hit(origin, dir, f32::INFINITY);
         let v = hemisphere_light(s, lights, mis, (p, n, dir), hit);
@@ -120,10 +156,27 @@ pub fn direct_at(
             // An emitter's (a ray that met a surface brings no sky).
             hemi_local += v;
         }
+        for r in layers.iter_mut() {
+            // The layer's share of what the ray met: what
+            // `hemisphere_light` scales by for the layer's lights.
+            let share = match &hit {
+                None => r.lights.sky_weight(),
+                Some(h) => r.lights.emission_weight(s.geometry.material[h.tri as usize]),
+            };
+            let v = v * share;
+            r.d.hemisphere += v;
+            if hit.is_some() {
+                r.hemi_local += v;
+            }
+        }
     }
     if nh > 0 {
         hemi /= nh as f32;
         local += hemi_local / nh as f32;
+        for r in layers.iter_mut() {
+            r.d.hemisphere /= nh as f32;
+            r.d.local += r.hemi_local / nh as f32;
+        }
     }
 
     // Light samples: a Hammersley set with a random rotation per point,
@@ -137,19 +190,38 @@ pub fn direct_at(
             let Some(ls) = lights.sample(g, hammersley(k, samples, shift)) else {
                 break;
             };
+            if lights.emission_weight(g.material[ls.tri as usize]) == 0.0 {
+                continue; // not this layer's emitter
+            }
             let (light, cast) = emitter_sample(s, lights, mis, points[k as usize], &ls);
             h += light;
             local += light;
             rays += cast;
+            let m = g.material[ls.tri as usize];
+            for r in layers.iter_mut() {
+                let share = r.lights.emission_weight(m);
+                if share != 0.0 {
+                    r.d.light += light * share;
+                    r.d.local += light * share;
+                }
+            }
         }
     }
     // A sky map's light samples (a uniform sky has only the cosine rays,
     // its ideal sampling already).
     if let Some(map) = lights.sky.map().filter(|m| !m.is_black()) {
         let n = lights.sky_samples;
-        let (sky, cast) = sky_light(s.rays, map, lights.sky_mis(mis), points, n, rng.next_vec2());
-        h += sky * lights.sky_weight();
-        rays += cast;
+        let shift = rng.next_vec2();
+        if lights.sky_weight() != 0.0 {
+            let (sky, cast) = sky_light(s.rays, map, lights.sky_mis(mis), points, n, shift);
+            h += sky * lights.sky_weight();
+            rays += cast;
+            for r in layers.iter_mut() {
+                if r.lights.sky_weight() != 0.0 {
+                    r.d.light += sky * r.lights.sky_weight();
+                }
+            }
+        }
     }
     TexelDirect {
         light: h,
@@ -319,6 +391,44 @@ pub fn local_light_at(
     (h, rays)
 }
 
+/// A light layer's share of a texel's direct light, accumulated in the
+/// whole texel's pass ([`direct_routed`], [`pieces_routed`]): the layer's
+/// masked lights ([`Lights::masked`]) and its parts so far (no directional
+/// part, no rays: the whole's pass casts them).
+pub struct Routed<'a> {
+    /// The layer's lights.
+    pub lights: &'a Lights,
+    /// Its direct light so far.
+    pub d: TexelDirect,
+    /// Its hemisphere rays' emitter part, before dividing by the rays.
+    hemi_local: Vec3,
+}
+
+impl<'a> Routed<'a> {
+    /// Nothing yet, for the layer of `lights`.
+    pub fn new(lights: &'a Lights) -> Self {
+        Routed {
+            lights,
+            d: TexelDirect::default(),
+            hemi_local: Vec3::ZERO,
+        }
+    }
+
+    /// Adds punctual `light`'s `value` (the layer's share) as
+    /// [`direct_at`] adds it: to the local part for a local light, to the
+    /// mixed or the baked part by its mode.
+    fn punctual(&mut self, light: &Light, value: Vec3) {
+        if light.is_local() {
+            self.d.local += value;
+        }
+        if light.mode.is_mixed() {
+            self.d.mixed += value;
+        } else {
+            self.d.light += value;
+        }
+    }
+}
+
 /// One texel's direct light, its parts apart (irradiance / π each).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct TexelDirect {
@@ -401,6 +511,18 @@ const PIECE_RAYS: usize = 4;
 /// Returns the baked lights' irradiance / π (in `light`), the mixed
 /// lights' (in `mixed`), the baked lights' directional part and the rays.
 pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> TexelDirect {
+    pieces_routed(s, lights, t, seed, &mut [])
+}
+
+/// [`pieces_direct`], and each light layer's share in the same pass (as
+/// [`direct_routed`]).
+pub fn pieces_routed(
+    s: &Surfaces,
+    lights: &Lights,
+    t: usize,
+    seed: u64,
+    layers: &mut [Routed],
+) -> TexelDirect {
     let mut out = TexelDirect::default();
     let Some(mut pieces) = TexelPieces::new(s, t) else {
         return out;
@@ -409,12 +531,23 @@ pub fn pieces_direct(s: &Surfaces, lights: &Lights, t: usize, seed: u64) -> Texe
     // Drawn from only by lights with a size.
     let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
     for (i, light) in lights.punctual.iter().enumerate() {
+        if lights.punctual_weight(i) == 0.0 {
+            // Not this layer's: no shadow rays, the same draws.
+            pieces.pass(s, light, &mut rng);
+            continue;
+        }
         let Some(seen) = pieces.light(s, light, &mut rng) else {
             continue;
         };
         out.rays += seen.rays;
         if seen.visible <= 0.0 {
             continue;
+        }
+        for r in layers.iter_mut() {
+            let share = r.lights.punctual_weight(i);
+            if share != 0.0 {
+                r.punctual(light, seen.unshadowed * (seen.visible * share));
+            }
         }
         let value = seen.unshadowed * (seen.visible * lights.punctual_weight(i));
         if light.is_local() {
@@ -485,6 +618,16 @@ impl<'a> TexelPieces<'a> {
             punctual_irradiance(light, p, g.ng_ws[piece.tri as usize])
                 .is_some_and(|(v, _, _)| v.element_sum() > 0.0)
         })
+    }
+
+    /// What [`TexelPieces::light`] draws from `rng` for `light`, drawn,
+    /// and nothing cast: a light layer's pass over a light it does not
+    /// hold (its share is 0), so the draws of the lights after it stay the
+    /// whole bake's.
+    pub fn pass(&mut self, s: &Surfaces, light: &Light, rng: &mut Stream) {
+        if light.has_extent() && self.reached_by(s, light) {
+            pass_visibility(rng);
+        }
     }
 
     /// `light` at the texel: the unshadowed irradiance summed exactly
@@ -583,13 +726,6 @@ pub fn texel_range(
     range: std::ops::Range<usize>,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Vec<TexelDirect> {
-    let (samples, hemisphere, mis, supersample, seed) = (
-        set.samples,
-        set.hemisphere,
-        set.mis,
-        set.supersample,
-        set.seed,
-    );
     let chunk = 256;
     let (lo, hi) = (range.start, range.end);
     if lights.is_empty() {
@@ -604,53 +740,113 @@ pub fn texel_range(
         .into_par_iter()
         .map(|c| {
             let range = lo + c * chunk..(lo + (c + 1) * chunk).min(hi);
-            let mut vals = Vec::with_capacity(range.len());
-            for t in range {
-                if s.burial.enclosed(t) {
-                    // Inside a solid (see `burial`): nothing arrives.
-                    vals.push(TexelDirect::default());
-                    continue;
-                }
-                let mut rng = Stream::new(seed, PURPOSE, t as u64);
-                // The texel's sampling constants, read once for all its points.
-                let sampler = s.texel_sampler(t as u32);
-                // One point: the texel's pieces (see `pieces_direct`);
-                // s × s points: spread over the texel's square.
-                let (centre, pieces) = if supersample <= 1 {
-                    (Vec::new(), pieces_direct(s, lights, t, seed))
-                } else {
-                    let m = supersample * supersample;
-                    let points = (0..m)
-                        .map(|k| sampler.sample(stratified(k, m, Vec2::splat(0.5))))
-                        .collect();
-                    (points, TexelDirect::default())
-                };
-                let mut spread = |count: u32| -> Vec<(Vec3, Vec3)> {
-                    (0..count)
-                        .map(|k| sampler.sample(stratified(k, count, rng.next_vec2())))
-                        .collect()
-                };
-                let points = spread(samples);
-                let hemi_points = if hemisphere == samples {
-                    points.clone()
-                } else {
-                    spread(hemisphere)
-                };
-                let mut d = direct_at(s, lights, mis, &centre, &points, &hemi_points, &mut rng);
-                for (bc, pc) in d.directional.iter_mut().zip(pieces.directional) {
-                    *bc += pc;
-                }
-                d.light += pieces.light;
-                d.mixed += pieces.mixed;
-                d.local += pieces.local;
-                d.rays += pieces.rays;
-                vals.push(d);
-            }
+            let vals: Vec<TexelDirect> = range.map(|t| texel_direct(s, lights, set, t, &mut [])).collect();
             advance(vals.len() as u64);
             vals
         })
         .collect();
     out.into_iter().flatten().collect()
+}
+
+/// [`texel_range`] over every texel with each light layer's share
+/// (`layers`: the layers' masked lights) in the same pass
+/// ([`direct_routed`]): the whole's texels, and per layer its texels,
+/// each what [`texel_range`] over the layer's lights gives.
+pub fn texel_range_layers(
+    s: &Surfaces,
+    lights: &Lights,
+    layers: &[Lights],
+    set: &TexelSettings,
+    advance: &(dyn Fn(u64) + Sync),
+) -> (Vec<TexelDirect>, Vec<Vec<TexelDirect>>) {
+    let n = s.texels.len();
+    let k = layers.len();
+    if lights.is_empty() {
+        advance(n as u64);
+        return (vec![TexelDirect::default(); n], vec![vec![TexelDirect::default(); n]; k]);
+    }
+    let chunk = 256;
+    let parts: Vec<(Vec<TexelDirect>, Vec<TexelDirect>)> = (0..n.div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
+            let range = c * chunk..((c + 1) * chunk).min(n);
+            let (mut wholes, mut ls) = (Vec::with_capacity(range.len()), Vec::new());
+            for t in range {
+                let mut routed: Vec<Routed> = layers.iter().map(Routed::new).collect();
+                wholes.push(texel_direct(s, lights, set, t, &mut routed));
+                ls.extend(routed.into_iter().map(|r| r.d));
+            }
+            advance(wholes.len() as u64);
+            (wholes, ls)
+        })
+        .collect();
+    let per_layer = (0..k)
+        .map(|i| parts.iter().flat_map(|(_, ls)| ls.iter().skip(i).step_by(k).copied()).collect())
+        .collect();
+    (parts.into_iter().flat_map(|(w, _)| w).collect(), per_layer)
+}
+
+/// Texel `t`'s direct light ([`texel_range`]), and `layers`' shares of it.
+#[inline(always)]
+fn texel_direct(
+    s: &Surfaces,
+    lights: &Lights,
+    set: &TexelSettings,
+    t: usize,
+    layers: &mut [Routed],
+) -> TexelDirect {
+    let (samples, hemisphere, mis, supersample, seed) = (
+        set.samples,
+        set.hemisphere,
+        set.mis,
+        set.supersample,
+        set.seed,
+    );
+    if s.burial.enclosed(t) {
+        // Inside a solid (see `burial`): nothing arrives.
+        return TexelDirect::default();
+    }
+    let mut rng = Stream::new(seed, PURPOSE, t as u64);
+    // The texel's sampling constants, read once for all its points.
+    let sampler = s.texel_sampler(t as u32);
+    // One point: the texel's pieces (see `pieces_direct`);
+    // s × s points: spread over the texel's square.
+    let mut piece_layers: Vec<Routed> = layers.iter().map(|r| Routed::new(r.lights)).collect();
+    let (centre, pieces) = if supersample <= 1 {
+        (Vec::new(), pieces_routed(s, lights, t, seed, &mut piece_layers))
+    } else {
+        let m = supersample * supersample;
+        let points = (0..m)
+            .map(|k| sampler.sample(stratified(k, m, Vec2::splat(0.5))))
+            .collect();
+        (points, TexelDirect::default())
+    };
+    let mut spread = |count: u32| -> Vec<(Vec3, Vec3)> {
+        (0..count)
+            .map(|k| sampler.sample(stratified(k, count, rng.next_vec2())))
+            .collect()
+    };
+    let points = spread(samples);
+    let hemi_points = if hemisphere == samples {
+        points.clone()
+    } else {
+        spread(hemisphere)
+    };
+    let all = (&centre[..], &points[..], &hemi_points[..]);
+    let mut d = direct_routed(s, lights, mis, all, &mut rng, layers);
+    for (bc, pc) in d.directional.iter_mut().zip(pieces.directional) {
+        *bc += pc;
+    }
+    d.light += pieces.light;
+    d.mixed += pieces.mixed;
+    d.local += pieces.local;
+    d.rays += pieces.rays;
+    for (r, p) in layers.iter_mut().zip(piece_layers) {
+        r.d.light += p.d.light;
+        r.d.mixed += p.d.mixed;
+        r.d.local += p.d.local;
+    }
+    d
 }
 
 /// The texels' direct light, in texel order, as [`Direct`].

@@ -51,15 +51,28 @@ pub fn direct_light(
     s: &Surfaces,
     config: &BakeConfig,
     sky: &crate::light::sky::Sky,
-    mask: Option<Mask>,
     advance: &(dyn Fn(u64) + Sync),
     shard: &Sharding,
 ) -> Result<DirectLight> {
+    Ok(direct_light_layers(s, config, sky, &[], advance, shard)?.0)
+}
+
+/// [`direct_light`], and in the same pass (same rays, same draws) each
+/// light layer's share of it, one per mask of `layers` (each what a pass
+/// over the layer's masked lights gives; see
+/// [`direct::direct_routed`]). With layers the pass is not sharded (a
+/// layered bake is one job).
+pub fn direct_light_layers(
+    s: &Surfaces,
+    config: &BakeConfig,
+    sky: &crate::light::sky::Sky,
+    layers: &[Mask],
+    advance: &(dyn Fn(u64) + Sync),
+    shard: &Sharding,
+) -> Result<(DirectLight, Vec<DirectLight>)> {
     let sampled = lights::sampled_materials(s.scene, s.geometry, config.emitters);
     let mut lights = Lights::new(s.scene, s.geometry, &sampled, sky.clone());
     lights.sky_samples = config.sky_samples;
-    // A light layer's: its share of each light, sampled as all of them.
-    lights.mask = mask;
     let gathering = config.final_gather > 0 && config.final_gather >= config.direct_samples;
     let mis = Mis {
         light: config.direct_samples,
@@ -89,34 +102,46 @@ pub fn direct_light(
             .map(|t| if s.burial.enclosed(t) { 0.01 } else { 1.0 })
             .collect()
     };
-    let texels = shard.items(
-        "direct",
-        n,
-        |count| crate::pipeline::shard::balanced(&cost(), count),
-        |range| direct::texel_range(s, &lights, &settings, range, advance),
-    )?;
-    let parts = direct::assemble(texels);
-    let texel = parts.total();
-    let patch = (0..s.patches.len())
-        .map(|i| {
-            let sum: Vec3 = s
-                .patches
-                .texels_of(i)
-                .iter()
-                .map(|&t| texel[t as usize] * s.texels.area[t as usize])
-                .sum();
-            sum / s.patches.area[i]
-        })
+    let layer_lights: Vec<Lights> = layers.iter().map(|m| lights.masked(m.clone())).collect();
+    let (texels, layer_texels) = if layers.is_empty() {
+        let texels = shard.items(
+            "direct",
+            n,
+            |count| crate::pipeline::shard::balanced(&cost(), count),
+            |range| direct::texel_range(s, &lights, &settings, range, advance),
+        )?;
+        (texels, Vec::new())
+    } else {
+        direct::texel_range_layers(s, &lights, &layer_lights, &settings, advance)
+    };
+    let build = |texels: Vec<direct::TexelDirect>, lights: Lights| {
+        let parts = direct::assemble(texels);
+        let texel = parts.total();
+        let patch = (0..s.patches.len())
+            .map(|i| {
+                let sum: Vec3 = s
+                    .patches
+                    .texels_of(i)
+                    .iter()
+                    .map(|&t| texel[t as usize] * s.texels.area[t as usize])
+                    .sum();
+                sum / s.patches.area[i]
+            })
+            .collect();
+        DirectLight {
+            sampled: sampled.clone(),
+            lights,
+            mis,
+            gathering,
+            parts,
+            texel,
+            patch,
+        }
+    };
+    let layer_directs = (layer_texels.into_iter().zip(layer_lights))
+        .map(|(t, l)| build(t, l))
         .collect();
-    Ok(DirectLight {
-        sampled,
-        lights,
-        mis,
-        gathering,
-        parts,
-        texel,
-        patch,
-    })
+    Ok((build(texels, lights), layer_directs))
 }
 
 /// The system solved over the stored matrix `f` by `config.solver`.

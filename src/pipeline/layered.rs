@@ -8,7 +8,8 @@
 //!
 //! - the lights are sampled as in the whole bake (a [`Mask`] scales what a
 //!   light brings, not how it is sampled), with the same random streams, so
-//!   every layer's direct light has the whole bake's sample points and rays;
+//!   every layer's direct light has the whole bake's sample points and rays
+//!   (its share routed from the whole's pass);
 //! - the solve runs the whole solve's iteration count (Jacobi and
 //!   Gauss–Seidel are linear for a fixed count);
 //! - where the whole first pass is clamped at 0, every layer's is 0
@@ -19,9 +20,10 @@
 //!   weights are the whole bake's ([`crate::radiosity::denoise::atrous_layers`],
 //!   [`crate::maps::seams::stitch_layers`]).
 //!
-//! The form factors, the burial, the validity and the gather's rays are
-//! the whole bake's; a layer re-casts only its direct light's rays (the
-//! same rays again) and its near-field shadow rays.
+//! The form factors, the burial, the validity, the direct light's rays
+//! (each layer's direct light is routed from the whole's pass,
+//! [`first_pass::direct_light_layers`]) and the gather's rays are the
+//! whole bake's; a layer casts only its near-field shadow rays.
 
 use super::log::Log;
 use super::first_pass::{self, DirectLight};
@@ -29,7 +31,6 @@ use super::texel_light::{LayerTexels, PatchLight};
 use crate::config::BakeConfig;
 use crate::error::{Error, Result};
 use crate::light::lights::Mask;
-use crate::light::sky::Sky;
 use crate::maps::lightmap;
 use crate::pipeline::shard::Sharding;
 use crate::radiosity::solve::System;
@@ -67,24 +68,16 @@ pub fn check(config: &BakeConfig, shard: &Sharding) -> Result<()> {
     Ok(())
 }
 
-/// Layer `k`'s direct light (the whole bake's samples, its lights'
-/// share) and its patch indirect light (the whole solve, as many
-/// iterations).
-fn direct_and_indirect(
+/// A layer's patch indirect light over its direct light `direct` (from
+/// the whole bake's pass, [`first_pass::direct_light_layers`]): the whole
+/// solve, as many iterations.
+fn indirect(
     s: &Surfaces,
     config: &BakeConfig,
-    (sky, layers, k): (&Sky, &Layers, usize),
+    direct: &DirectLight,
     patch_light: &PatchLight,
-) -> Result<(DirectLight, Vec<Vec3>, Mask)> {
-    let mask = Mask::of_layer(layers, s.scene, k);
-    let direct = first_pass::direct_light(
-        s,
-        config,
-        sky,
-        Some(mask.clone()),
-        &|_| {},
-        &Sharding::whole(),
-    )?;
+) -> Result<Vec<Vec3>> {
+    let mask = direct.lights.mask.clone().unwrap_or_default();
     let Some(ff) = &patch_light.form_factors else {
         return Err(Error::Config {
             key: "solver".into(),
@@ -115,10 +108,9 @@ fn direct_and_indirect(
         ..config.clone()
     };
     let solution = first_pass::solve_matrix(&ff.matrix, &system, &fixed, &|_| {})?;
-    let indirect = (solution.irradiance.iter().zip(&direct.patch))
+    Ok((solution.irradiance.iter().zip(&direct.patch))
         .map(|(h, d)| *h - *d)
-        .collect();
-    Ok((direct, indirect, mask))
+        .collect())
 }
 
 /// The whole bake's first pass before its clamp ([`lightmap::interpolate_unclamped`]).
@@ -138,15 +130,15 @@ fn whole_unclamped(s: &Surfaces, patch_light: &PatchLight) -> Vec<Vec3> {
 pub(super) fn first_passes(
     s: &Surfaces,
     config: &BakeConfig,
-    (sky, layers): (&Sky, &Layers),
+    (layers, directs): (&Layers, Vec<DirectLight>),
     patch_light: &PatchLight,
     log: &mut Log,
 ) -> Result<Vec<LayerTexels>> {
     log.begin("layers", layers.len() as u64);
     let whole = whole_unclamped(s, patch_light);
     let mut out = Vec::with_capacity(layers.len());
-    for k in 0..layers.len() {
-        let (direct, indirect, _) = direct_and_indirect(s, config, (sky, layers, k), patch_light)?;
+    for direct in directs {
+        let indirect = indirect(s, config, &direct, patch_light)?;
         let baked = direct.parts.baked();
         out.push(LayerTexels {
             values: lightmap::first_pass_layer(s.texels, s.patches, &baked, &indirect, &whole),
@@ -175,7 +167,7 @@ pub(super) struct LayerInput {
 pub(super) fn inputs(
     s: &Surfaces,
     config: &BakeConfig,
-    (sky, layers): (&Sky, &Layers),
+    (layers, directs): (&Layers, Vec<DirectLight>),
     patch_light: &PatchLight,
     pre: &[bool],
     log: &mut Log,
@@ -183,8 +175,9 @@ pub(super) fn inputs(
     log.begin("layers", layers.len() as u64);
     let unclamped = whole_unclamped(s, patch_light);
     let mut out = Vec::with_capacity(layers.len());
-    for k in 0..layers.len() {
-        let (direct, indirect, mask) = direct_and_indirect(s, config, (sky, layers, k), patch_light)?;
+    for direct in directs {
+        let indirect = indirect(s, config, &direct, patch_light)?;
+        let mask = direct.lights.mask.clone().unwrap_or_default();
         let mut first =
             lightmap::first_pass_layer(s.texels, s.patches, &direct.texel, &indirect, &unclamped);
         lightmap::fill_invalid(s.texels, &mut first, pre, lightmap::fill_rings(config.patch_texels));

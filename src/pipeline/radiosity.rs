@@ -10,14 +10,14 @@
 //! come on demand ([`OnDemand`]) and its solution is completed by
 //! gathering sweeps ([`progressive::gather_sweeps`]).
 
-use super::first_pass::{direct_light, solve_matrix, DirectLight};
+use super::first_pass::{direct_light_layers, solve_matrix, DirectLight};
 use super::log::Log;
 use super::snapshot::Snapshots;
 use super::texel_light::{LayerTexels, PatchLight, Rays, TexelLight};
 use crate::config::{self, BakeConfig, FormFactorMethod, Solver};
 use crate::error::{Error, Result};
 use crate::layout::atlas::Atlas;
-use crate::light::lights::Directional;
+use crate::light::lights::{Directional, Mask};
 use crate::scene::layers::Layers;
 use crate::maps::lightmap;
 use crate::pipeline::shard::Sharding;
@@ -72,7 +72,11 @@ pub fn run(
     log.end("form_factors");
 
     log.begin("direct", s.texels.len() as u64);
-    let mut direct = direct_light(s, config, sky, None, &advance, shard)?;
+    // The light layers' direct light in the same pass.
+    let masks: Vec<Mask> = layers.map_or(Vec::new(), |l| {
+        (0..l.len()).map(|k| Mask::of_layer(l, s.scene, k)).collect()
+    });
+    let (mut direct, layer_directs) = direct_light_layers(s, config, sky, &masks, &advance, shard)?;
     log.end("direct");
     shard.checkpoint(1, false)?;
 
@@ -124,7 +128,7 @@ pub fn run(
         // The lightmap leaves the mixed lights' direct light out.
         let baked = direct.parts.baked();
         let layers = match layers {
-            Some(l) => super::layered::first_passes(s, config, (sky, l), &patch_light, log)?,
+            Some(l) => super::layered::first_passes(s, config, (l, layer_directs), &patch_light, log)?,
             None => Vec::new(),
         };
         return Ok(TexelLight {
@@ -145,7 +149,7 @@ pub fn run(
     // Each light layer's direct light and first pass, for the gather's
     // hits to read beside the whole's.
     let layer_inputs = match layers {
-        Some(l) => super::layered::inputs(s, config, (sky, l), &patch_light, &pre, log)?,
+        Some(l) => super::layered::inputs(s, config, (l, layer_directs), &patch_light, &pre, log)?,
         None => Vec::new(),
     };
     let inputs = GatherInputs {
