@@ -199,20 +199,19 @@ pub fn bake_with<'s>(
             sky: &sky,
             mask: None,
         };
-        let mut p = probes::bake(&inputs, config, &|n| progress.advance(n));
-        // Each light layer's probes: the same rays over its share of the
-        // lights and of the lightmap.
-        if let Some(l) = &layers {
-            for (k, (lm, lt)) in maps.layers.iter().zip(&light.layers).enumerate() {
-                let inputs = probes::Inputs {
+        // Each light layer's probes: the same rays, read for its share of
+        // the lights and of the lightmap.
+        let layer_inputs: Vec<probes::LayerInputs> = match &layers {
+            Some(l) => (maps.layers.iter().zip(&light.layers).enumerate())
+                .map(|(k, (lm, lt))| probes::LayerInputs {
                     texel_values: &lm.texel_values,
                     mixed: &lt.mixed,
-                    mask: Some(crate::light::lights::Mask::of_layer(l, scene, k)),
-                    ..inputs
-                };
-                p.layers.push(probes::bake(&inputs, config, &|_| {}).sh);
-            }
-        }
+                    mask: crate::light::lights::Mask::of_layer(l, scene, k),
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        let p = probes::bake_layers(&inputs, &layer_inputs, config, &|n| progress.advance(n));
         log.end("probes");
         p
     });

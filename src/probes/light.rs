@@ -91,15 +91,15 @@ fn random_rotation(rng: &mut Stream) -> Quat {
 /// turned at random, through the map's luminance distribution), each
 /// unoccluded one added to `sh` with the light estimator's MIS weight
 /// against the sphere rays (power heuristic with counts), its radiance
-/// times `scale` (a light layer's share of the sky). Returns the
-/// shadow rays cast.
+/// times `scale` (a light layer's share of the sky); and into each of
+/// `layers` with its share of `shares`. Returns the shadow rays cast.
 fn sky_samples(
     s: &Surfaces,
     map: &crate::light::sky::SkyMap,
-    (p, scale): (Vec3, f32),
+    (p, scale, shares): (Vec3, f32, &[f32]),
     sky_mis: Mis,
     rng: &mut Stream,
-    sh: &mut Sh9,
+    (sh, layers): (&mut Sh9, &mut [Sh9]),
 ) -> u32 {
     let ms = sky_mis.light;
     let shift = rng.next_vec2();
@@ -114,14 +114,78 @@ fn sky_samples(
             let p_b = 1.0 / (4.0 * std::f32::consts::PI);
             let w = 1.0 - sky_mis.hemisphere_weight(pdf, p_b);
             sh::add(sh, dir, l * (w * scale), 1.0 / (pdf * ms as f32));
+            for (share, sh) in shares.iter().zip(layers.iter_mut()) {
+                sh::add(sh, dir, l * (w * share), 1.0 / (pdf * ms as f32));
+            }
         }
     }
     cast
 }
 
+/// What a probe's sphere ray met ([`ProbeLight::along`]), for the light
+/// layers to read their share of.
+#[derive(Clone, Copy)]
+pub enum Met {
+    /// A back face, or nothing that brings light.
+    Nothing,
+    /// The sky: its radiance and the ray's MIS weight.
+    Sky(Vec3, f32),
+    /// A surface: the texel it landed on, and its emission (before any
+    /// layer's share) with the material and, for a sampled emitter, the
+    /// ray's MIS weight.
+    Surface(Option<u32>, Option<(Vec3, u32, Option<f32>)>),
+}
+
+/// A light layer's view of the probes ([`ProbeLight::probe_layers`]): its
+/// surfaces' outgoing radiance and its share of each light.
+pub struct LayerProbe<'a> {
+    /// Outgoing diffuse radiance per texel: albedo × the layer's lightmap
+    /// value.
+    pub radiance: Vec<Vec3>,
+    /// The layer's masked lights ([`Lights::masked`]).
+    pub lights: &'a Lights,
+}
+
+impl LayerProbe<'_> {
+    /// The radiance the layer receives along a ray that met `met`: as
+    /// [`ProbeLight::along`] computes it over the layer's lights.
+    fn along(&self, met: Met) -> Vec3 {
+        match met {
+            Met::Nothing => Vec3::ZERO,
+            Met::Sky(sky, w) => sky * self.lights.sky_weight() * w,
+            Met::Surface(texel, emitted) => {
+                let mut l = texel.map_or(Vec3::ZERO, |t| self.radiance[t as usize]);
+                if let Some((e, mat, mis)) = emitted {
+                    let le = e * self.lights.emission_weight(mat);
+                    match mis {
+                        None => l += le,
+                        Some(w) => l += le * w,
+                    }
+                }
+                l
+            }
+        }
+    }
+}
+
 impl ProbeLight<'_> {
     /// The light at probe `index`, at world position `p`.
     pub fn probe(&self, index: usize, p: Vec3) -> ProbeSample {
+        self.probe_layers(index, p, &[], &mut [])
+    }
+
+    /// [`ProbeLight::probe`], and in the same pass each light layer's SH
+    /// into `out` (one per layer of `layers`): every ray, light sample
+    /// and shadow ray the whole probe casts, read for each layer with its
+    /// radiance and its share of each light ([`LayerProbe`]), each value
+    /// the product a pass over the layer's masked lights computes.
+    pub fn probe_layers(
+        &self,
+        index: usize,
+        p: Vec3,
+        layers: &[LayerProbe],
+        out: &mut [Sh9],
+    ) -> ProbeSample {
         let mut rng = Stream::new(self.seed, PURPOSE, index as u64);
         let turn = random_rotation(&mut rng);
         let net = Net::new(&mut rng);
@@ -152,35 +216,56 @@ impl ProbeLight<'_> {
         for i in 0..n {
             let d = turn * fibonacci(i, n);
             cast += 1;
-            let (l, backface) = self.along(p, d, mis, sky_mis);
+            let (l, backface, met) = self.along(p, d, mis, sky_mis);
             back += backface as u32;
             sh::add(&mut sh, d, l, w);
+            for (layer, sh) in layers.iter().zip(out.iter_mut()) {
+                sh::add(sh, d, layer.along(met), w);
+            }
         }
         for k in 0..m {
-            cast += self.light_sample(p, net.point(k), mis, &mut sh) as u32;
+            let (shot, seen) = self.light_sample(p, net.point(k), mis, &mut sh);
+            cast += shot as u32;
+            if let Some((d, e, mat, weight)) = seen {
+                for (layer, sh) in layers.iter().zip(out.iter_mut()) {
+                    sh::add(sh, d, e * layer.lights.emission_weight(mat), weight);
+                }
+            }
         }
         if let Some(map) = map {
             let scale = self.lights.sky_weight();
-            cast += sky_samples(self.s, map, (p, scale), sky_mis, &mut rng, &mut sh);
+            let shares: Vec<f32> = layers.iter().map(|l| l.lights.sky_weight()).collect();
+            cast += sky_samples(self.s, map, (p, scale, &shares), sky_mis, &mut rng, (&mut sh, out));
         }
         // Mixed lights' direct light is the engine's to draw.
         for (i, light) in self.lights.punctual.iter().enumerate() {
             if light.mode.is_mixed() {
                 continue;
             }
-            if let Some((e, to, dist)) = punctual_incident(light, p) {
-                let e = e * self.lights.punctual_weight(i);
-                if light.has_extent() {
+            if let Some((e0, to, dist)) = punctual_incident(light, p) {
+                let e = e0 * self.lights.punctual_weight(i);
+                let visible = if light.has_extent() {
                     // A sphere or sun disk: its visible fraction over its
                     // extent, the delta kept at its centre.
                     let from = [(p, to, 1.0, to, dist)];
                     let (visible, rays) = light_visibility(self.s.rays, light, &from, &mut rng);
                     cast += rays as u32;
                     sh::add(&mut sh, to, e * visible, 1.0);
+                    Some(visible)
                 } else {
                     cast += 1;
-                    if punctual_unoccluded(self.s.rays, p, to, dist) {
+                    let seen = punctual_unoccluded(self.s.rays, p, to, dist);
+                    if seen {
                         sh::add(&mut sh, to, e, 1.0);
+                    }
+                    seen.then_some(1.0)
+                };
+                for (layer, sh) in layers.iter().zip(out.iter_mut()) {
+                    let e = e0 * layer.lights.punctual_weight(i);
+                    match visible {
+                        Some(v) if light.has_extent() => sh::add(sh, to, e * v, 1.0),
+                        Some(_) => sh::add(sh, to, e, 1.0),
+                        None => {}
                     }
                 }
             }
@@ -194,73 +279,90 @@ impl ProbeLight<'_> {
 
     /// Radiance arriving at `p` from direction `d` (the sphere estimator's
     /// part: sampled emitters MIS-weighted), and whether a back face was met.
-    fn along(&self, p: Vec3, d: Vec3, mis: Mis, sky_mis: Mis) -> (Vec3, bool) {
+    fn along(&self, p: Vec3, d: Vec3, mis: Mis, sky_mis: Mis) -> (Vec3, bool, Met) {
         let s = self.s;
         let g = s.geometry;
         let (landing, hit) = s.trace(p, d);
         let Some(hit) = hit else {
-            let l = self.lights.sky.radiance(d) * self.lights.sky_weight();
+            let sky = self.lights.sky.radiance(d);
+            let l = sky * self.lights.sky_weight();
             let w = match self.lights.sky.map() {
                 Some(map) if sky_mis.light > 0 => {
                     sky_mis.hemisphere_weight(map.pdf(d), 1.0 / (4.0 * std::f32::consts::PI))
                 }
                 _ => 1.0,
             };
-            return (l * w, false);
+            return (l * w, false, Met::Sky(sky, w));
         };
         if let Landing::BackFace = landing {
-            return (Vec3::ZERO, true);
+            return (Vec3::ZERO, true, Met::Nothing);
         }
         let tri = hit.tri as usize;
         let mat = g.material[tri];
-        let mut l = match landing {
-            Landing::Texel(t) => self.radiance[t as usize],
-            _ => Vec3::ZERO,
+        let texel = match landing {
+            Landing::Texel(t) => Some(t),
+            _ => None,
         };
+        let mut l = texel.map_or(Vec3::ZERO, |t| self.radiance[t as usize]);
+        let mut emitted = None;
         if g.ng_ws[tri].dot(d) < 0.0 && s.scene.materials[mat as usize].is_emissive() {
-            let le = s.scene.emission_at(mat, g.uv0_at(hit.tri, hit.u, hit.v))
-                * self.lights.emission_weight(mat);
+            let e = s.scene.emission_at(mat, g.uv0_at(hit.tri, hit.u, hit.v));
+            let le = e * self.lights.emission_weight(mat);
             if !self.sampled[mat as usize] {
                 l += le;
+                emitted = Some((e, mat, None));
             } else if let Some(k) = self.lights.emitter_index(hit.tri) {
                 let p_l = self
                     .lights
                     .pdf_solid_angle(g, k, p, p + d * hit.t, g.ng_ws[tri]);
                 let p_b = 1.0 / (4.0 * std::f32::consts::PI);
-                l += le * mis.hemisphere_weight(p_l, p_b);
+                let w = mis.hemisphere_weight(p_l, p_b);
+                l += le * w;
+                emitted = Some((e, mat, Some(w)));
             }
         }
-        (l, false)
+        (l, false, Met::Surface(texel, emitted))
     }
 
     /// One emitter sample for unit-square point `u`, MIS-weighted, added to
     /// `sh`. Returns whether a shadow ray was cast.
-    fn light_sample(&self, p: Vec3, u: glam::Vec2, mis: Mis, sh: &mut Sh9) -> bool {
+    /// Also what a light layer adds from it where it was seen: its
+    /// direction, the emission (before any layer's share), the material
+    /// and the SH weight.
+    #[allow(clippy::type_complexity)]
+    fn light_sample(
+        &self,
+        p: Vec3,
+        u: glam::Vec2,
+        mis: Mis,
+        sh: &mut Sh9,
+    ) -> (bool, Option<(Vec3, Vec3, u32, f32)>) {
         let (s, g) = (self.s, self.s.geometry);
         let Some(e) = self.lights.sample(g, u) else {
-            return false;
+            return (false, None);
         };
         let to = e.point - p;
         let dist = to.length();
         if dist <= 0.0 {
-            return false;
+            return (false, None);
         }
         let d = to / dist;
         let cos_q = e.normal.dot(-d);
         if cos_q <= 0.0 {
-            return false;
+            return (false, None);
         }
         let p_l = e.pdf_area * dist * dist / cos_q;
         if !punctual_unoccluded(s.rays, p, d, dist) {
-            return true;
+            return (true, None);
         }
         let mat = g.material[e.tri as usize];
-        let le = s.scene.emission_at(mat, g.uv0_at(e.tri, e.u, e.v))
-            * self.lights.emission_weight(mat);
+        let emitted = s.scene.emission_at(mat, g.uv0_at(e.tri, e.u, e.v));
+        let le = emitted * self.lights.emission_weight(mat);
         let p_b = 1.0 / (4.0 * std::f32::consts::PI);
         let w_l = 1.0 - mis.hemisphere_weight(p_l, p_b);
-        sh::add(sh, d, le, w_l / (mis.light as f32 * p_l));
-        true
+        let weight = w_l / (mis.light as f32 * p_l);
+        sh::add(sh, d, le, weight);
+        (true, Some((d, emitted, mat, weight)))
     }
 }
 

@@ -214,9 +214,33 @@ pub struct Inputs<'a> {
     pub mask: Option<Mask>,
 }
 
+/// A light layer's inputs to the probes ([`bake_layers`]).
+pub struct LayerInputs<'a> {
+    /// The layer's lightmap value per texel, filled.
+    pub texel_values: &'a [Vec3],
+    /// The layer's mixed lights' direct light per texel (may be empty).
+    pub mixed: &'a [Vec3],
+    /// The layer's share of each light.
+    pub mask: Mask,
+}
+
 /// Bakes the probes (see the module doc). `advance` is called with probes
 /// done.
 pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)) -> Probes {
+    bake_layers(inputs, &[], config, advance)
+}
+
+/// [`bake`], and each light layer's SH ([`Probes::layers`]) in the same
+/// pass: the whole's rays read for every layer
+/// ([`light::ProbeLight::probe_layers`]), filled with the whole's
+/// validity. Each layer's SH is what [`bake`] over the layer's inputs
+/// gives.
+pub fn bake_layers(
+    inputs: &Inputs,
+    layers: &[LayerInputs],
+    config: &BakeConfig,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Probes {
     let s = inputs.s;
     let g = s.geometry;
     let bounds = g.bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
@@ -232,13 +256,18 @@ pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)
     lights.mask = inputs.mask.clone();
     // What the surfaces reflect: the lightmap, plus the mixed lights'
     // direct light, which the lightmap leaves to the engine.
-    let radiance = s
-        .texels
-        .albedo
-        .iter()
-        .zip(inputs.texel_values)
-        .enumerate()
-        .map(|(t, (a, v))| *a * (*v + inputs.mixed.get(t).copied().unwrap_or_default()))
+    let radiance_of = |values: &[Vec3], mixed: &[Vec3]| -> Vec<Vec3> {
+        (s.texels.albedo.iter().zip(values).enumerate())
+            .map(|(t, (a, v))| *a * (*v + mixed.get(t).copied().unwrap_or_default()))
+            .collect()
+    };
+    let radiance = radiance_of(inputs.texel_values, inputs.mixed);
+    let layer_lights: Vec<Lights> = layers.iter().map(|l| lights.masked(l.mask.clone())).collect();
+    let layer_probes: Vec<light::LayerProbe> = (layers.iter().zip(&layer_lights))
+        .map(|(l, lights)| light::LayerProbe {
+            radiance: radiance_of(l.texel_values, l.mixed),
+            lights,
+        })
         .collect();
     let pl = ProbeLight {
         s,
@@ -254,26 +283,37 @@ pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)
         .flat_map(|v| (0..v.len()).map(move |i| v.position(i)))
         .collect();
     let chunk = 64;
-    let samples: Vec<light::ProbeSample> = positions
+    let k = layers.len();
+    let samples: Vec<(light::ProbeSample, Vec<Sh9>)> = positions
         .par_chunks(chunk)
         .enumerate()
         .flat_map_iter(|(c, ps)| {
             let out: Vec<_> = ps
                 .iter()
                 .enumerate()
-                .map(|(k, p)| pl.probe(c * chunk + k, *p))
+                .map(|(i, p)| {
+                    let mut ls = vec![[Vec3::ZERO; 9]; k];
+                    (pl.probe_layers(c * chunk + i, *p, &layer_probes, &mut ls), ls)
+                })
                 .collect();
             advance(out.len() as u64);
             out
         })
         .collect();
-    let mut sh: Vec<Sh9> = samples.iter().map(|x| x.sh).collect();
-    let valid: Vec<bool> = samples.iter().map(|x| x.valid).collect();
-    let rays = samples.iter().map(|x| x.rays as u64).sum();
+    let mut sh: Vec<Sh9> = samples.iter().map(|x| x.0.sh).collect();
+    let valid: Vec<bool> = samples.iter().map(|x| x.0.valid).collect();
+    let rays = samples.iter().map(|x| x.0.rays as u64).sum();
+    let mut layer_sh: Vec<Vec<Sh9>> = (0..k)
+        .map(|i| samples.iter().map(|x| x.1[i]).collect())
+        .collect();
+    drop(samples);
     let mut unfilled = 0;
     for v in &volumes {
         let range = v.first..v.first + v.len();
-        unfilled += fill::fill(v, &mut sh[range.clone()], &valid[range]);
+        unfilled += fill::fill(v, &mut sh[range.clone()], &valid[range.clone()]);
+        for l in &mut layer_sh {
+            fill::fill(v, &mut l[range.clone()], &valid[range.clone()]);
+        }
     }
     Probes {
         volumes,
@@ -283,6 +323,6 @@ pub fn bake(inputs: &Inputs, config: &BakeConfig, advance: &(dyn Fn(u64) + Sync)
         placed: !inputs.specs.is_empty(),
         unfilled,
         rays,
-        layers: Vec::new(),
+        layers: layer_sh,
     }
 }
