@@ -52,6 +52,9 @@ pub fn direct_at(
     direct_routed(s, lights, mis, (punctual_points, points, hemisphere), rng, &mut [])
 }
 
+/// Sample points on a texel (point, normal).
+type Points<'a> = &'a [(Vec3, Vec3)];
+
 /// [`direct_at`], and in the same pass each light layer's share
 /// ([`Routed`]): every contribution the whole texel receives is added,
 /// times the layer's share of its light, to each layer that holds the
@@ -62,7 +65,7 @@ pub fn direct_routed(
     s: &Surfaces,
     lights: &Lights,
     mis: Mis,
-    (punctual_points, points, hemisphere): (&[(Vec3, Vec3)], &[(Vec3, Vec3)], &[(Vec3, Vec3)]),
+    (punctual_points, points, hemisphere): (Points, Points, Points),
     rng: &mut Stream,
     layers: &mut [Routed],
 ) -> TexelDirect {

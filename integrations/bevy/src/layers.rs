@@ -208,7 +208,7 @@ fn weighted(template: &Image, per_layer: &[Vec<Vec3>], w: &[Vec3]) -> Image {
 
 /// Starts a recombination for every applied bake whose [`RadbakeLayers`]
 /// changed (or changed while one ran), and applies those that finished.
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub(crate) fn recombine_layers(
     mut commands: Commands,
     mut bakes: Query<
