@@ -8,6 +8,8 @@
 //   scene.add(gltf.scene);
 //   const probes = await loadRadbakeProbes('bake/probes.json');   // optional
 //   scene.add(probes.lightProbeAt(character.position));             // a LightProbe
+//   const layers = await loadRadbakeLayers('bake/manifest.json', gltf.scene, probes);
+//   layers.setLayerWeight('lamp', [2, 1.6, 1]);                     // optional
 //
 // Conventions (docs/engines.md, three.js): a lightmap texel holds incident
 // irradiance / π as sRGB(value / s) with one scale s per instance, and
@@ -17,8 +19,16 @@
 // result is albedo × value: nothing else to scale. The stock Hubs-style
 // loader reads the bytes as linear (NoColorSpace): that renders
 // srgb(v / s) × s in place of v (too bright, most in the dark).
+//
+// Light layers (docs/layers.md): `loadRadbakeLayers` replaces each
+// lightmapped material's lightMap by a linear half-float page holding
+// Σₖ wₖ × layer k (from the layers' `lightmap_<page>_<layer>.exr`), with
+// the glb's atlas rectangle and uv1 kept and lightMapIntensity = π (the
+// page holds irradiance / π unscaled), and rewrites the probes' SH to the
+// same sum.
 
 import * as THREE from 'three';
+import { EXRLoader } from 'three/addons/loaders/EXRLoader.js';
 
 /**
  * `MOZ_lightmap` read onto `materialParams` with the texture in
@@ -78,8 +88,10 @@ function harmonics(floats, i) {
 
 /**
  * Loads `probes.json` and the binary it names. Returns
- * `{ meta, count, probe(i), position(i), shAt(p), lightProbeAt(p) }`:
- * `probe(i)` is a LightProbe for probe i; `shAt(p)` the SH interpolated
+ * `{ meta, count, floats, probe(i), position(i), shAt(p), lightProbeAt(p) }`:
+ * `floats` the coefficients (27 per probe: nine RGB radiance SH, as
+ * `probes.bin`), which `loadRadbakeLayers` rewrites in place and every
+ * later call reads; `probe(i)` is a LightProbe for probe i; `shAt(p)` the SH interpolated
  * trilinearly between the eight probes around world point p (clamped to the
  * grid's outer probes, as Bevy samples its volume); `lightProbeAt(p)` a
  * LightProbe holding it, for a dynamic object standing at p.
@@ -140,9 +152,278 @@ export async function loadRadbakeProbes(url) {
   return {
     meta,
     count: meta.probes,
+    floats,
     probe: (i) => new THREE.LightProbe(harmonics(floats, i), 1),
     position,
     shAt,
     lightProbeAt: (p) => new THREE.LightProbe(shAt(p), 1),
+  };
+}
+
+/**
+ * Float32 to half float by table, indexed by the float's sign and
+ * exponent (its top 9 bits): half = base[e] + (mantissa >> shift[e]), as
+ * THREE.DataUtils.toHalfFloat but saturating at ±65504, the largest
+ * finite half, in place of going infinite.
+ */
+const HALF = (() => {
+  const base = new Uint16Array(512);
+  const shift = new Uint8Array(512);
+  for (let i = 0; i < 256; i++) {
+    const e = i - 127;
+    let b;
+    let sh;
+    if (e < -27) [b, sh] = [0, 24]; // to zero
+    else if (e < -14) [b, sh] = [0x0400 >> (-e - 14), -e - 1]; // subnormal
+    else if (e <= 15) [b, sh] = [(e + 15) << 10, 13];
+    else if (e < 128) [b, sh] = [0x7bff, 24]; // too large: 65504
+    else [b, sh] = [0x7c00, 13]; // infinity, NaN
+    base[i] = b;
+    base[i | 0x100] = b | 0x8000;
+    shift[i] = shift[i | 0x100] = sh;
+  }
+  return { base, shift };
+})();
+
+/** Fetches `url` as an ArrayBuffer; a failed request is a one-line error naming it. */
+async function fetchBytes(url) {
+  const response = await fetch(url);
+  if (!response.ok) throw new Error(`${url}: HTTP ${response.status}`);
+  return response.arrayBuffer();
+}
+
+/**
+ * A layer's page from its EXR as packed linear RGB floats, rows in the
+ * glb's order (row 0 at v = 0, the top of the image). EXRLoader returns
+ * RGBA with its rows bottom-up.
+ */
+function readPage(url, bytes) {
+  const { width, height, data } = new EXRLoader().setDataType(THREE.FloatType).parse(bytes);
+  const rgb = new Float32Array(width * height * 3);
+  for (let y = 0; y < height; y++) {
+    const from = (height - 1 - y) * width * 4;
+    const to = y * width * 3;
+    for (let x = 0; x < width; x++) {
+      rgb[to + 3 * x] = data[from + 4 * x];
+      rgb[to + 3 * x + 1] = data[from + 4 * x + 1];
+      rgb[to + 3 * x + 2] = data[from + 4 * x + 2];
+    }
+  }
+  return { url, width, height, rgb };
+}
+
+/** An RGB weight from a number (grey) or three numbers; null if not one. */
+function weightOf(value) {
+  const rgb = typeof value === 'number' ? [value, value, value] : Array.isArray(value) && value.length === 3 ? value : null;
+  return rgb && rgb.every((w) => typeof w === 'number' && Number.isFinite(w) && w >= 0) ? rgb : null;
+}
+
+/**
+ * Loads the light layers of the bake whose `manifest.json` is at
+ * `manifestUrl` and makes the lightmapped materials under `root` (the
+ * bake's `.glb` as RadbakeLightmapPlugin loaded it) show their weighted
+ * sum Σₖ wₖ × layer k, every weight 1 at first (the bake's own lightmap).
+ * Each material whose lightMap is the glb's texture `lightmap_<page>`
+ * gets a linear half-float texture of that page, sharing one image per
+ * page, with the old texture's uv channel and atlas transform and
+ * lightMapIntensity = π; materials made later from these (clones, other
+ * material types) follow the weights too. The emissive materials a
+ * layer holds (the manifest's `materials`, by name) get their emissive
+ * colour × w. Given the bake's `probes` (loadRadbakeProbes), their
+ * coefficients become the same sum.
+ *
+ * Returns `{ names, weight(name), setLayerWeight(name, w),
+ * setLayerWeights({ name: w, ... }), cost }`: `names` the layers in the
+ * manifest's order (none for a bake without layers); a weight `w` is a
+ * number or [r, g, b], non-negative; layers not named keep theirs.
+ * Setting weights recombines on the CPU at once; `cost` is
+ * `{ ms, texels }` of the last recombination. An unknown layer or a bad
+ * weight is an error and changes nothing. Half floats hold up to 65504:
+ * larger sums are stored as 65504.
+ */
+export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
+  const base = new URL(manifestUrl, location.href);
+  const manifest = await (await fetch(base)).json();
+  const layers = manifest.layers || [];
+  const names = layers.map((l) => l.name);
+  const weights = new Map(names.map((n) => [n, [1, 1, 1]]));
+  const pageIndices = (manifest.pages || []).map((p) => p.page);
+  // layerPages[k].get(page): layer k's page as packed RGB.
+  const layerPages = await Promise.all(
+    layers.map(async (l) => {
+      const pages = new Map();
+      await Promise.all(
+        pageIndices.map(async (page) => {
+          const entry = l.pages.find((p) => p.page === page);
+          if (!entry) throw new Error(`${manifestUrl}: layer ${l.name} has no page ${page}`);
+          const url = new URL(entry.exr, base).href;
+          pages.set(page, readPage(entry.exr, await fetchBytes(url)));
+        }),
+      );
+      return pages;
+    }),
+  );
+  const layerProbes = probes
+    ? await Promise.all(
+        layers.map(async (l) => {
+          const floats = new Float32Array(await fetchBytes(new URL(l.probes.binary, base).href));
+          if (floats.length !== probes.floats.length) {
+            throw new Error(`${l.probes.binary}: ${floats.length / 27} probes, the bake has ${probes.count}`);
+          }
+          return floats;
+        }),
+      )
+    : [];
+
+  // One half-float image per page; a texture per material's lightMap.
+  const combined = new Map();
+  if (names.length) {
+    for (const page of pageIndices) {
+      const { width, height, url } = layerPages[0].get(page);
+      for (const pages of layerPages) {
+        const p = pages.get(page);
+        if (p.width !== width || p.height !== height) {
+          throw new Error(`${p.url}: ${p.width}×${p.height}, ${url} is ${width}×${height}`);
+        }
+      }
+      const data = new Uint16Array(width * height * 4).fill(THREE.DataUtils.toHalfFloat(1));
+      const texture = new THREE.DataTexture(data, width, height, THREE.RGBAFormat, THREE.HalfFloatType);
+      texture.colorSpace = THREE.LinearSRGBColorSpace;
+      texture.magFilter = THREE.LinearFilter;
+      texture.minFilter = THREE.LinearFilter;
+      texture.generateMipmaps = false;
+      texture.flipY = false;
+      combined.set(page, { texture, clones: [], sum: new Float32Array(width * height * 3) });
+    }
+  }
+  const replaced = new Map(); // the glb's lightMap -> its layered texture
+  let materials = 0;
+  root.traverse((o) => {
+    if (!o.isMesh || !names.length) return;
+    for (const m of Array.isArray(o.material) ? o.material : [o.material]) {
+      const old = m.lightMap;
+      const page = old && /^lightmap_(\d+)$/.exec(old.name);
+      if (!page || !combined.has(Number(page[1]))) continue;
+      const target = combined.get(Number(page[1]));
+      if (!replaced.has(old)) {
+        const { width, height } = target.texture.image;
+        if (old.image && (old.image.width !== width || old.image.height !== height)) {
+          throw new Error(`the glb's ${old.name} is ${old.image.width}×${old.image.height}, its layers ${width}×${height}`);
+        }
+        const t = target.texture.clone();
+        t.name = old.name;
+        t.channel = old.channel;
+        t.offset.copy(old.offset);
+        t.repeat.copy(old.repeat);
+        t.center.copy(old.center);
+        t.rotation = old.rotation;
+        t.matrixAutoUpdate = old.matrixAutoUpdate;
+        t.matrix.copy(old.matrix);
+        target.clones.push(t);
+        replaced.set(old, t);
+      }
+      m.lightMap = replaced.get(old);
+      m.lightMapIntensity = Math.PI;
+      m.needsUpdate = true;
+      materials++;
+    }
+  });
+  if (names.length && !materials) {
+    throw new Error(`${manifestUrl}: no material uses a lightmap_<page> texture of this bake`);
+  }
+  // The layers' emissive materials (by name): their emission at weight 1.
+  const emitters = [];
+  root.traverse((o) => {
+    if (!o.isMesh) return;
+    for (const m of Array.isArray(o.material) ? o.material : [o.material]) {
+      const k = layers.findIndex((l) => (l.materials || []).includes(m.name));
+      if (k >= 0 && m.emissive && !emitters.some((e) => e.material === m)) {
+        emitters.push({ material: m, layer: k, emissive: m.emissive.clone() });
+      }
+    }
+  });
+
+  const cost = { ms: 0, texels: 0 };
+  /** Writes Σₖ wₖ × layer k into every page and the probes. */
+  function recombine() {
+    if (!names.length) return;
+    const started = performance.now();
+    const w = names.map((n) => weights.get(n));
+    const { base, shift } = HALF;
+    let texels = 0;
+    for (const [page, { texture, clones, sum }] of combined) {
+      const sources = layerPages.map((pages) => pages.get(page).rgb);
+      for (let k = 0; k < sources.length; k++) {
+        const src = sources[k];
+        const [r, g, b] = w[k];
+        if (k === 0) {
+          for (let j = 0; j < sum.length; j += 3) {
+            sum[j] = r * src[j];
+            sum[j + 1] = g * src[j + 1];
+            sum[j + 2] = b * src[j + 2];
+          }
+        } else {
+          for (let j = 0; j < sum.length; j += 3) {
+            sum[j] += r * src[j];
+            sum[j + 1] += g * src[j + 1];
+            sum[j + 2] += b * src[j + 2];
+          }
+        }
+      }
+      // To half floats, rounded to nearest (+ half a half-float step).
+      const bits = new Uint32Array(sum.buffer);
+      const out = texture.image.data;
+      for (let j = 0, o = 0; j < bits.length; j += 3, o += 4) {
+        for (let c = 0; c < 3; c++) {
+          const f = bits[j + c] + 0x1000;
+          const e = (f >>> 23) & 0x1ff;
+          out[o + c] = base[e] + ((f & 0x7fffff) >> shift[e]);
+        }
+      }
+      texels += sum.length / 3;
+      for (const t of clones) t.needsUpdate = true;
+    }
+    for (const { material, layer, emissive } of emitters) {
+      const [r, g, b] = w[layer];
+      material.emissive.setRGB(emissive.r * r, emissive.g * g, emissive.b * b);
+    }
+    if (probes) {
+      const out = probes.floats;
+      for (let i = 0; i < out.length; i++) {
+        let v = 0;
+        for (let k = 0; k < layerProbes.length; k++) v += w[k][i % 3] * layerProbes[k][i];
+        out[i] = v;
+      }
+    }
+    cost.ms = performance.now() - started;
+    cost.texels = texels;
+  }
+
+  /** `name`, or an error naming it and the bake's layers. */
+  function known(name) {
+    if (!weights.has(name)) {
+      throw new Error(`unknown light layer "${name}" (${names.length ? `this bake's: ${names.join(', ')}` : 'this bake has none'})`);
+    }
+    return name;
+  }
+
+  function setLayerWeights(changes) {
+    const checked = Object.entries(changes).map(([name, value]) => {
+      known(name);
+      const rgb = weightOf(value);
+      if (!rgb) throw new Error(`light layer ${name}: weight ${JSON.stringify(value)} is not a non-negative number or [r, g, b]`);
+      return [name, rgb];
+    });
+    for (const [name, rgb] of checked) weights.set(name, [...rgb]);
+    recombine();
+  }
+
+  recombine();
+  return {
+    names,
+    weight: (name) => [...weights.get(known(name))],
+    setLayerWeight: (name, value) => setLayerWeights({ [name]: value }),
+    setLayerWeights,
+    cost,
   };
 }

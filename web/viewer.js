@@ -9,12 +9,20 @@
 //   size      WxH of the canvas (default: the window)
 //   loader    radbake (default) | hubs: the stock Hubs semantics, for tests
 //   probes    the bake's probes.json (`radbake serve` adds it when the bake has probes)
-// `window.radbake` reports { ready, error, cameras, probes } for scripts.
+//   manifest  the bake's manifest.json, for its light layers (default: the
+//             one beside `url`, if there is one; none: no layers)
+//   layer     NAME=W or NAME=R,G,B, repeatable: a light layer's weight, as
+//             `radbake preview --layer` (layers not named keep 1), e.g.
+//             ?url=…&layer=lamp=0&layer=ceiling=1,0.8,0.6
+// A bake with light layers gets an intensity slider (0–4) and a colour per
+// layer. `window.radbake` reports { ready, error, cameras, probes, layers }
+// for scripts (layers: the names); ready comes after the `layer` weights
+// are applied, and an unknown layer name is an error naming it.
 
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
-import { HubsLightmapPlugin, RadbakeLightmapPlugin, loadRadbakeProbes } from './radbake-three.js';
+import { HubsLightmapPlugin, RadbakeLightmapPlugin, loadRadbakeLayers, loadRadbakeProbes } from './radbake-three.js';
 
 const params = new URLSearchParams(location.search);
 const state = {
@@ -22,7 +30,7 @@ const state = {
   exposure: Number(params.get('exposure') || 0),
   tonemap: params.get('tonemap') || 'aces',
 };
-window.radbake = { ready: false, error: null, cameras: [], probes: 0 };
+window.radbake = { ready: false, error: null, cameras: [], probes: 0, layers: [] };
 
 const canvas = document.getElementById('view');
 const size = params.get('size') ? params.get('size').split('x').map(Number) : null;
@@ -34,10 +42,13 @@ let camera = new THREE.PerspectiveCamera(50, 1, 0.05, 1000);
 const controls = new OrbitControls(camera, canvas);
 let gltfCameras = [];
 let probes = null;
+let layers = null;
+let pendingWeights = null; // slider weights not applied yet: { name: [r, g, b] }
+const reshades = []; // re-shade probe-lit geometry after the probes change
 const originals = new Map(); // mesh -> its lit (Lambert) material
 
 function resize() {
-  const [w, h] = size || [window.innerWidth, window.innerHeight - 40];
+  const [w, h] = size || [window.innerWidth, window.innerHeight - document.getElementById('bar').offsetHeight];
   renderer.setSize(w, h, false);
   canvas.style.width = `${w}px`;
   canvas.style.height = `${h}px`;
@@ -45,9 +56,13 @@ function resize() {
   camera.updateProjectionMatrix();
 }
 
-/** The lit material: Lambert, as radbake's convention (metallic ignored). */
+/**
+ * The lit material: Lambert, as radbake's convention (metallic ignored).
+ * `userData.source` keeps `m`, whose emission light layers change.
+ */
 function lambert(m) {
   return new THREE.MeshLambertMaterial({
+    userData: { source: m },
     name: m.name,
     color: m.color,
     map: m.map,
@@ -84,11 +99,15 @@ function applyView() {
   for (const s of overlay.userData.spheres || []) s.visible = state.view === 'probes';
 }
 
-/** Vertex colours E/π(n) from an SH, per vertex (three.js's own SH evaluation). */
+/**
+ * Vertex colours E/π(n) from an SH, per vertex (three.js's own SH
+ * evaluation), into the geometry's colour attribute (made on first use).
+ */
 function shadeFromProbes(geometry, matrixWorld, shAt) {
   const pos = geometry.attributes.position;
   const nrm = geometry.attributes.normal;
-  const colors = new Float32Array(pos.count * 3);
+  if (!geometry.attributes.color) geometry.setAttribute('color', new THREE.BufferAttribute(new Float32Array(pos.count * 3), 3));
+  const colors = geometry.attributes.color.array;
   const p = new THREE.Vector3();
   const n = new THREE.Vector3();
   const e = new THREE.Vector3();
@@ -99,7 +118,13 @@ function shadeFromProbes(geometry, matrixWorld, shAt) {
     shAt(p).getIrradianceAt(n, e).multiplyScalar(1 / Math.PI);
     colors.set([Math.max(e.x, 0), Math.max(e.y, 0), Math.max(e.z, 0)], 3 * i);
   }
-  geometry.setAttribute('color', new THREE.BufferAttribute(colors, 3));
+  geometry.attributes.color.needsUpdate = true;
+}
+
+/** Shades probe-lit geometry with `shade()` now and whenever the probes change. */
+function probeLit(shade) {
+  shade();
+  reshades.push(shade);
 }
 
 function addProbeSpheres() {
@@ -113,11 +138,10 @@ function addProbeSpheres() {
     if (invalid) {
       mat = new THREE.MeshBasicMaterial({ color: 0xff0000 });
     } else {
-      const at = probes.position(i);
-      const sh = probes.probe(i).sh;
-      g.translate(at.x, at.y, at.z);
-      shadeFromProbes(g, new THREE.Matrix4(), () => sh);
-      g.translate(-at.x, -at.y, -at.z);
+      probeLit(() => {
+        const sh = probes.probe(i).sh;
+        shadeFromProbes(g, new THREE.Matrix4(), () => sh);
+      });
       mat = new THREE.MeshBasicMaterial({ vertexColors: true });
     }
     const s = new THREE.Mesh(g, mat);
@@ -137,7 +161,7 @@ function lightDynamicNodes(root) {
     if (!dyn || !probes) return;
     o.updateWorldMatrix(true, false);
     const g = o.geometry.clone();
-    shadeFromProbes(g, o.matrixWorld, probes.shAt);
+    probeLit(() => shadeFromProbes(g, o.matrixWorld, probes.shAt));
     const lit = originals.get(o);
     const m = new THREE.MeshBasicMaterial({ color: lit.color, map: lit.map, vertexColors: true, side: lit.side });
     o.geometry = g;
@@ -171,6 +195,58 @@ function frame(root) {
   camera.updateProjectionMatrix();
 }
 
+/**
+ * The bake's manifest.json for `url`: the `manifest` parameter, else the
+ * one beside `url` if the server has it; null for `manifest=none` and a
+ * dropped file.
+ */
+async function manifestFor(url) {
+  const given = params.get('manifest');
+  if (given) return given === 'none' ? null : given;
+  if (url.startsWith('blob:')) return null;
+  const beside = new URL('manifest.json', new URL(url, location.href)).href;
+  const response = await fetch(beside);
+  return response.ok && (await response.json()) ? beside : null;
+}
+
+/** The `layer` parameters as { name: w or [r, g, b] }; a malformed one is an error naming it. */
+function layerParams() {
+  const weights = {};
+  for (const entry of params.getAll('layer')) {
+    const m = /^([A-Za-z_][A-Za-z0-9_]*)=([^=]+)$/.exec(entry);
+    const values = m ? m[2].split(',').map((v) => (/^\s*[-+0-9.eE]+\s*$/.test(v) ? Number(v) : NaN)) : [];
+    if (!m || ![1, 3].includes(values.length) || values.some((v) => !Number.isFinite(v))) {
+      throw new Error(`layer=${entry}: expected NAME=W or NAME=R,G,B`);
+    }
+    weights[m[1]] = values.length === 1 ? values[0] : values;
+  }
+  return weights;
+}
+
+/** The sliders: per layer an intensity (0–4) and a colour, their product the weight. */
+function layerControls() {
+  const bar = document.getElementById('layers');
+  bar.replaceChildren(
+    ...layers.names.map((name) => {
+      const rgb = layers.weight(name);
+      const intensity = Math.max(...rgb);
+      const colour = intensity > 0 ? new THREE.Color(...rgb.map((c) => c / intensity)) : new THREE.Color(1, 1, 1);
+      const label = document.createElement('label');
+      const slider = Object.assign(document.createElement('input'), { type: 'range', min: 0, max: 4, step: 0.05, value: intensity, title: `${name} intensity` });
+      const picker = Object.assign(document.createElement('input'), { type: 'color', value: `#${colour.getHexString()}`, title: `${name} colour` });
+      const update = () => {
+        const c = new THREE.Color(picker.value); // sRGB hex to linear
+        pendingWeights = { ...pendingWeights, [name]: [c.r, c.g, c.b].map((v) => v * Number(slider.value)) };
+      };
+      slider.addEventListener('input', update);
+      picker.addEventListener('input', update);
+      label.append(`${name} `, slider, picker);
+      return label;
+    }),
+  );
+  resize();
+}
+
 async function load(url) {
   const Plugin = params.get('loader') === 'hubs' ? HubsLightmapPlugin : RadbakeLightmapPlugin;
   const loader = new GLTFLoader().register((parser) => new Plugin(parser));
@@ -184,6 +260,17 @@ async function load(url) {
   gltf.scene.traverse((o) => o.isLight && lights.push(o));
   for (const l of lights) l.removeFromParent();
   scene.add(gltf.scene);
+  reshades.length = 0;
+  probes = params.get('probes') ? await loadRadbakeProbes(params.get('probes')) : null;
+  window.radbake.probes = probes ? probes.count : 0;
+  const weights = layerParams();
+  const manifest = await manifestFor(url);
+  if (!manifest && Object.keys(weights).length) {
+    throw new Error(`layer=${params.getAll('layer')[0]}: no manifest.json beside ${url} (name one with manifest=)`);
+  }
+  layers = manifest ? await loadRadbakeLayers(manifest, gltf.scene, probes) : null;
+  if (layers) layers.setLayerWeights(weights);
+  window.radbake.layers = layers ? layers.names : [];
   gltf.scene.traverse((o) => {
     if (o.isMesh) {
       const lit = lambert(o.material);
@@ -192,8 +279,7 @@ async function load(url) {
   });
   gltfCameras = gltf.cameras;
   window.radbake.cameras = gltfCameras.map((c) => c.name);
-  probes = params.get('probes') ? await loadRadbakeProbes(params.get('probes')) : null;
-  window.radbake.probes = probes ? probes.count : 0;
+  if (layers && layers.names.length) layerControls();
   if (probes) {
     addProbeSpheres();
     lightDynamicNodes(gltf.scene);
@@ -254,6 +340,12 @@ const url = params.get('url');
     render();
     window.radbake.ready = true;
     renderer.setAnimationLoop(() => {
+      if (pendingWeights) {
+        layers.setLayerWeights(pendingWeights);
+        pendingWeights = null;
+        for (const shade of reshades) shade();
+        for (const lit of originals.values()) if (lit.userData.source) lit.emissive.copy(lit.userData.source.emissive);
+      }
       controls.update();
       render();
     });
