@@ -83,13 +83,6 @@ pub fn direct_routed(
     for &(p, n) in punctual_points {
         for (i, light) in lights.punctual.iter().enumerate() {
             if let Some((value, dir, dist)) = punctual_irradiance(light, p, n) {
-                if lights.punctual_weight(i) == 0.0 {
-                    // Not this layer's: the same draws, no ray.
-                    if light.has_extent() {
-                        pass_visibility(rng);
-                    }
-                    continue;
-                }
                 let (visible, cast) =
                     light_visibility(s.rays, light, &[(p, n, 1.0, dir, dist)], rng);
                 rays += cast;
@@ -141,16 +134,10 @@ pub fn direct_routed(
     // where visibility depends on both (a plate seeing the sky past a
     // floor's edge read 4.7 % low at 64 samples).
     let perm = rng.permutation(nh);
-    // A light layer that holds neither the sky nor an emitter: the rays'
-    // draws, no rays.
-    let dark = lights.hemisphere_dark();
     for k in 0..nh {
         let (p, n) = hemisphere[perm[k as usize] as usize];
         let origin = offset_ray_origin(p, n);
         let dir = to_world(cosine_hemisphere(stratified(k, nh, rng.next_vec2())), n);
-        if dark {
-            continue;
-        }
         rays += 1;
         let hit = s.rays.closest_hit(origin, dir, f32::INFINITY);
         let v = hemisphere_light(s, lights, mis, (p, n, dir), hit);
@@ -193,9 +180,6 @@ pub fn direct_routed(
             let Some(ls) = lights.sample(g, hammersley(k, samples, shift)) else {
                 break;
             };
-            if lights.emission_weight(g.material[ls.tri as usize]) == 0.0 {
-                continue; // not this layer's emitter
-            }
             let (light, cast) = emitter_sample(s, lights, mis, points[k as usize], &ls);
             h += light;
             local += light;
@@ -214,15 +198,12 @@ pub fn direct_routed(
     // its ideal sampling already).
     if let Some(map) = lights.sky.map().filter(|m| !m.is_black()) {
         let n = lights.sky_samples;
-        let shift = rng.next_vec2();
-        if lights.sky_weight() != 0.0 {
-            let (sky, cast) = sky_light(s.rays, map, lights.sky_mis(mis), points, n, shift);
-            h += sky * lights.sky_weight();
-            rays += cast;
-            for r in layers.iter_mut() {
-                if r.lights.sky_weight() != 0.0 {
-                    r.d.light += sky * r.lights.sky_weight();
-                }
+        let (sky, cast) = sky_light(s.rays, map, lights.sky_mis(mis), points, n, rng.next_vec2());
+        h += sky * lights.sky_weight();
+        rays += cast;
+        for r in layers.iter_mut() {
+            if r.lights.sky_weight() != 0.0 {
+                r.d.light += sky * r.lights.sky_weight();
             }
         }
     }
@@ -534,11 +515,6 @@ pub fn pieces_routed(
     // Drawn from only by lights with a size.
     let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
     for (i, light) in lights.punctual.iter().enumerate() {
-        if lights.punctual_weight(i) == 0.0 {
-            // Not this layer's: no shadow rays, the same draws.
-            pieces.pass(s, light, &mut rng);
-            continue;
-        }
         let Some(seen) = pieces.light(s, light, &mut rng) else {
             continue;
         };
@@ -621,16 +597,6 @@ impl<'a> TexelPieces<'a> {
             punctual_irradiance(light, p, g.ng_ws[piece.tri as usize])
                 .is_some_and(|(v, _, _)| v.element_sum() > 0.0)
         })
-    }
-
-    /// What [`TexelPieces::light`] draws from `rng` for `light`, drawn,
-    /// and nothing cast: a light layer's pass over a light it does not
-    /// hold (its share is 0), so the draws of the lights after it stay the
-    /// whole bake's.
-    pub fn pass(&mut self, s: &Surfaces, light: &Light, rng: &mut Stream) {
-        if light.has_extent() && self.reached_by(s, light) {
-            pass_visibility(rng);
-        }
     }
 
     /// `light` at the texel: the unshadowed irradiance summed exactly

@@ -198,14 +198,6 @@ impl Lights {
         self.mask.as_ref().map_or(1.0, |k| k.material[m as usize])
     }
 
-    /// True for a light layer that holds neither the sky nor any emitter:
-    /// a cosine ray brings it nothing whatever it meets.
-    pub fn hemisphere_dark(&self) -> bool {
-        self.mask.as_ref().is_some_and(|m| {
-            m.sky == 0.0 && m.material.iter().all(|&w| w == 0.0)
-        })
-    }
-
     /// The layer's share of the sky.
     #[inline(always)]
     pub fn sky_weight(&self) -> f32 {
@@ -382,15 +374,6 @@ pub fn light_visibility(
         }
     }
     (if all > 0.0 { seen / all } else { 0.0 }, cast)
-}
-
-/// Draws from `rng` what [`light_visibility`] draws for a light with an
-/// extent, casting nothing (see [`crate::light::direct::TexelPieces::pass`]).
-pub fn pass_visibility(rng: &mut Stream) {
-    rng.permutation(EXTENT_SAMPLES);
-    for _ in 0..EXTENT_SAMPLES {
-        rng.next_vec2();
-    }
 }
 
 /// Which materials' emission is sampled as direct light (per

@@ -197,7 +197,6 @@ pub fn bake_with<'s>(
             mixed: &light.mixed,
             specs: &scene.probe_volumes,
             sky: &sky,
-            mask: None,
         };
         // Each light layer's probes: the same rays, read for its share of
         // the lights and of the lightmap.

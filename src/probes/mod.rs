@@ -209,9 +209,6 @@ pub struct Inputs<'a> {
     pub sky: &'a crate::light::sky::Sky,
     /// The boxes the scene places (empty: one box over the scene).
     pub specs: &'a [VolumeSpec],
-    /// A light layer's share of each light (`None`: every light; see
-    /// [`Mask`]), with `texel_values` and `mixed` that layer's.
-    pub mask: Option<Mask>,
 }
 
 /// A light layer's inputs to the probes ([`bake_layers`]).
@@ -253,7 +250,6 @@ pub fn bake_layers(
     let sampled = sampled_materials(s.scene, g, config.emitters);
     let mut lights = Lights::new(s.scene, g, &sampled, inputs.sky.clone());
     lights.sky_samples = config.sky_samples;
-    lights.mask = inputs.mask.clone();
     // What the surfaces reflect: the lightmap, plus the mixed lights'
     // direct light, which the lightmap leaves to the engine.
     let radiance_of = |values: &[Vec3], mixed: &[Vec3]| -> Vec<Vec3> {
