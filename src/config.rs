@@ -105,6 +105,40 @@ impl LayerMode {
 /// The layer of every light that names none.
 pub const STATIC_LAYER: &str = "static";
 
+/// The default [`BakeConfig::live_grid`]: 12 × 12 = 144 directions.
+pub const DEFAULT_LIVE_GRID: u32 = 12;
+
+fn default_live_grid() -> u32 {
+    DEFAULT_LIVE_GRID
+}
+
+fn is_default_live_grid(n: &u32) -> bool {
+    *n == DEFAULT_LIVE_GRID
+}
+
+/// A day's sun path for the live lights ([`BakeConfig::sun_path`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SunPathSetting {
+    /// Degrees north (−90 to 90).
+    pub latitude: f32,
+    /// Day of the year (1–366).
+    pub day: f32,
+    /// Directions along the path.
+    #[serde(default = "default_path_samples")]
+    pub samples: u32,
+}
+
+/// Samples of a day's sun path where none is given.
+pub const DEFAULT_SUN_PATH_SAMPLES: u32 = 256;
+
+fn default_path_samples() -> u32 {
+    DEFAULT_SUN_PATH_SAMPLES
+}
+
+/// The light layer of the live lights' bounced light ([`LightMode::Live`]).
+pub const LIVE_LAYER: &str = "live";
+
 /// A light layer's name is a plain identifier: ASCII letters, digits and
 /// `_`, 1 to 32 of them, not starting with a digit (it names files:
 /// `lightmap_<page>_<layer>.exr`).
@@ -359,6 +393,19 @@ pub struct BakeConfig {
     /// [`STATIC_LAYER`], and left out of `report.json`'s settings).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sky_layer: Option<String>,
+    /// A live bake's sun directions: an n × n grid over the upper
+    /// hemisphere (2–64; [`radbake_live::directions`]). Left out of
+    /// `report.json`'s settings at the default.
+    #[serde(
+        default = "default_live_grid",
+        skip_serializing_if = "is_default_live_grid"
+    )]
+    pub live_grid: u32,
+    /// A sun path for the live lights whose node gives none
+    /// (`extras.radbake.sun_path`): their tables are made along it, not over
+    /// the hemisphere ([`crate::scene::sun_path`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sun_path: Option<SunPathSetting>,
     /// Bake light probes for dynamic objects ([`crate::probes`]).
     pub probes: bool,
     /// Probe spacing in metres (a `probe_volume` node may set its own).
@@ -412,6 +459,7 @@ pub struct BakeConfig {
 /// | `indirect` | bounced only | bounced only | the direct light, with its real-time shadows |
 /// | `shadowmask` | bounced only, plus its occlusion in a shadowmask channel | bounced only | the direct light × the shadowmask |
 /// | `realtime` | nothing | nothing | everything (the light is not baked) |
+/// | `live` | as `indirect`, its bounced light in the light layer `live`, which `live.bin` re-solves at run time for any direction (directional lights only; see `radbake_live`) | as `indirect` (as baked) | the direct light, with its real-time shadows |
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
@@ -425,6 +473,9 @@ pub enum LightMode {
     Shadowmask,
     /// Not baked at all.
     Realtime,
+    /// As `indirect`, its bounced light re-solved at run time for any sun
+    /// direction (`live.bin`, [`radbake_live`]).
+    Live,
 }
 
 impl LightMode {
@@ -435,15 +486,17 @@ impl LightMode {
             LightMode::Indirect => "indirect",
             LightMode::Shadowmask => "shadowmask",
             LightMode::Realtime => "realtime",
+            LightMode::Live => "live",
         }
     }
 
     /// Every mode, in the order of the table above.
-    pub const ALL: [LightMode; 4] = [
+    pub const ALL: [LightMode; 5] = [
         LightMode::Baked,
         LightMode::Indirect,
         LightMode::Shadowmask,
         LightMode::Realtime,
+        LightMode::Live,
     ];
 
     /// Parses a mode name (one of [`LightMode::ALL`]'s names).
@@ -452,9 +505,12 @@ impl LightMode {
     }
 
     /// True for a light whose direct light the bake leaves to the engine
-    /// but whose bounced light it bakes (`indirect`, `shadowmask`).
+    /// but whose bounced light it bakes (`indirect`, `shadowmask`, `live`).
     pub fn is_mixed(self) -> bool {
-        matches!(self, LightMode::Indirect | LightMode::Shadowmask)
+        matches!(
+            self,
+            LightMode::Indirect | LightMode::Shadowmask | LightMode::Live
+        )
     }
 }
 
@@ -531,6 +587,8 @@ impl BakeConfig {
             ktx2: Ktx2Mode::Rgb9e5,
             layers: LayerMode::Auto,
             sky_layer: None,
+            live_grid: DEFAULT_LIVE_GRID,
+            sun_path: None,
             probes: true,
             probe_spacing: 1.0,
             probe_budget: 16_384,
@@ -737,6 +795,20 @@ impl BakeConfig {
                 "sky_layer",
                 "must be a plain identifier (letters, digits, _; at most 32, not starting with a digit)",
             );
+        }
+        if !(2..=64).contains(&self.live_grid) {
+            return bad("live_grid", "must be in 2..=64");
+        }
+        if let Some(p) = &self.sun_path {
+            let ok = (-90.0..=90.0).contains(&p.latitude)
+                && (1.0..=366.0).contains(&p.day)
+                && (2..=4096).contains(&p.samples);
+            if !ok {
+                return bad(
+                    "sun_path",
+                    "latitude in −90..90 degrees, day in 1..366, samples in 2..4096",
+                );
+            }
         }
         Ok(())
     }

@@ -21,6 +21,8 @@ enum Command {
     Bake(Box<crate::cli::bake::BakeArgs>),
     /// Recombine a bake's light layers at new weights into a bake folder, without a bake.
     Combine(crate::cli::combine::CombineArgs),
+    /// Relight a live bake for a new sun direction (and sky) into a bake folder, in milliseconds.
+    Relight(crate::cli::relight::RelightArgs),
     /// Look at a baked .glb in a window (or render it offscreen with --headless).
     #[cfg(feature = "preview")]
     Preview(crate::cli::preview::PreviewArgs),
@@ -64,6 +66,7 @@ pub fn main() -> ExitCode {
     let result = std::panic::catch_unwind(|| match &cli.command {
         Command::Bake(args) => crate::cli::bake::run(args),
         Command::Combine(args) => crate::cli::combine::run(args),
+        Command::Relight(args) => crate::cli::relight::run(args),
         Command::Render(args) => crate::cli::render::run(args),
         Command::Measure(args) => crate::cli::measure::run(args),
         Command::Sdf(args) => crate::cli::sdf::run(args),

@@ -119,6 +119,19 @@ pub struct BakeArgs {
     /// The sky's light layer (a plain identifier) [default: static].
     #[arg(long, value_name = "NAME")]
     pub sky_layer: Option<String>,
+    /// Live sun: every directional light whose node sets no mode is baked in mode `live` (its
+    /// bounced light in layer `live`, re-solved at run time from `live.bin` for any direction;
+    /// docs/live.md).
+    #[arg(long)]
+    pub live: bool,
+    /// A live bake's sun directions: an n × n grid over the upper hemisphere, 2 to 64 [default: 12].
+    #[arg(long, value_name = "N")]
+    pub live_grid: Option<u32>,
+    /// A live sun's path, `LATITUDE,DAY[,SAMPLES]` (degrees north, day 1–366, default 256 samples),
+    /// for live lights whose node gives no `extras.radbake.sun_path`: tables along it, not over the
+    /// hemisphere.
+    #[arg(long, value_name = "LAT,DAY[,N]", value_parser = parse_sun_path, allow_hyphen_values = true)]
+    pub sun_path: Option<radbake::config::SunPathSetting>,
     /// Light probes for dynamic objects: on or off [default: on].
     #[arg(long, value_parser = parse_on_off, value_name = "on|off")]
     pub probes: Option<bool>,
@@ -228,6 +241,25 @@ fn parse_light_mode(s: &str) -> Result<(String, radbake::scene::LightMode), Stri
     Ok((name.to_owned(), mode))
 }
 
+fn parse_sun_path(s: &str) -> Result<radbake::config::SunPathSetting, String> {
+    let v: Vec<f32> = (s.split(','))
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("`{x}`: {e}")))
+        .collect::<Result<_, _>>()?;
+    let (latitude, day, samples) = match v[..] {
+        [l, d] => (l, d, radbake::scene::sun_path::DEFAULT_SAMPLES as f32),
+        [l, d, n] => (l, d, n),
+        _ => return Err("expected LATITUDE,DAY or LATITUDE,DAY,SAMPLES".into()),
+    };
+    if samples.fract() != 0.0 || samples < 2.0 {
+        return Err("SAMPLES must be a whole number ≥ 2".into());
+    }
+    Ok(radbake::config::SunPathSetting {
+        latitude,
+        day,
+        samples: samples as u32,
+    })
+}
+
 fn parse_on_off(s: &str) -> Result<bool, String> {
     match s {
         "on" | "true" => Ok(true),
@@ -320,6 +352,15 @@ impl BakeArgs {
         if let Some(name) = &self.sky_layer {
             c.sky_layer = Some(name.clone());
         }
+        if self.live {
+            c.light_modes.directional = Some(radbake::config::LightMode::Live);
+        }
+        if let Some(n) = self.live_grid {
+            c.live_grid = n;
+        }
+        if let Some(p) = self.sun_path {
+            c.sun_path = Some(p);
+        }
         for (name, mode) in &self.light_mode {
             c.light_modes.lights.insert(name.clone(), *mode);
         }
@@ -344,6 +385,16 @@ pub fn run(args: &BakeArgs) -> Outcome {
         let (code, message) = lib_err(e);
         (code, format!("{}: {message}", args.scene.display()))
     })?;
+    let live = radbake::config::LightMode::Live;
+    if args.live && !scene.lights.iter().any(|l| l.mode == live) {
+        return Err((
+            2,
+            format!(
+                "{}: --live: the scene has no directional light in mode `live` (none, or each one's node sets its own mode)",
+                args.scene.display()
+            ),
+        ));
+    }
     let import = StageTime {
         stage: "import".into(),
         seconds: start.elapsed().as_secs_f64(),

@@ -20,7 +20,7 @@ pub struct CombineArgs {
     pub quiet: bool,
 }
 
-fn parse_weight(s: &str) -> Result<(String, [f32; 3]), String> {
+pub fn parse_weight(s: &str) -> Result<(String, [f32; 3]), String> {
     radbake::output::combine::parse_weight(s)
         .map(|(name, w)| (name, w.to_array()))
         .map_err(|e| e.to_string())

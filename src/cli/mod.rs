@@ -12,6 +12,7 @@ pub mod measure;
 #[cfg(feature = "preview")]
 pub mod preview;
 pub mod progress;
+pub mod relight;
 pub mod render;
 pub mod sdf;
 pub mod serve;

@@ -4,3 +4,4 @@
 pub mod direct;
 pub mod lights;
 pub mod sky;
+pub mod sun_table;

@@ -61,34 +61,13 @@ pub fn interpolate_unclamped(
 }
 
 fn interpolate_bilinear(texels: &Texels, patches: &Patches, patch_values: &[Vec3]) -> Vec<Vec3> {
-    let k = patches.block as f32;
     (0..texels.len())
         .into_par_iter()
         .map(|t| {
-            let [x, y] = texels.xy[t];
-            let inst = texels.instance[t];
-            // The texel's region (its patch's key): blocks across a wall
-            // are other regions' and drop out.
-            let region = patches.key[patches.of_texel[t].0 as usize].1;
-            let f = (Vec2::new(x as f32, y as f32) + 0.5) / k - 0.5;
-            let b0 = f.floor();
-            let w = f - b0;
-            let (mut acc, mut wsum) = (Vec3::ZERO, 0.0f32);
-            for (dx, dy, wt) in [
-                (0, 0, (1.0 - w.x) * (1.0 - w.y)),
-                (1, 0, w.x * (1.0 - w.y)),
-                (0, 1, (1.0 - w.x) * w.y),
-                (1, 1, w.x * w.y),
-            ] {
-                let bx = b0.x as i64 + dx;
-                let by = b0.y as i64 + dy;
-                if bx < 0 || by < 0 || wt <= 0.0 {
-                    continue;
-                }
-                if let Some(p) = patches.by_key.get(&(inst, region, bx as u32, by as u32)) {
-                    acc += patch_values[p.0 as usize] * wt;
-                    wsum += wt;
-                }
+            let (corners, wsum) = bilinear_weights(texels, patches, t);
+            let mut acc = Vec3::ZERO;
+            for (p, wt) in corners.into_iter().flatten() {
+                acc += patch_values[p as usize] * wt;
             }
             if wsum > 0.0 {
                 acc / wsum
@@ -97,6 +76,46 @@ fn interpolate_bilinear(texels: &Texels, patches: &Patches, patch_values: &[Vec3
             }
         })
         .collect()
+}
+
+/// Texel `t`'s bilinear weights ([`interpolate`]): up to four patches of
+/// its region (its patch's key: blocks across a wall are other regions'
+/// and drop out) with their weights, not normalised, and the weights' sum
+/// (0: the texel takes its own patch's value).
+pub fn bilinear_weights(
+    texels: &Texels,
+    patches: &Patches,
+    t: usize,
+) -> ([Option<(u32, f32)>; 4], f32) {
+    let k = patches.block as f32;
+    let [x, y] = texels.xy[t];
+    let inst = texels.instance[t];
+    let region = patches.key[patches.of_texel[t].0 as usize].1;
+    let f = (Vec2::new(x as f32, y as f32) + 0.5) / k - 0.5;
+    let b0 = f.floor();
+    let w = f - b0;
+    let mut out = [None; 4];
+    let mut wsum = 0.0f32;
+    for (slot, (dx, dy, wt)) in [
+        (0, 0, (1.0 - w.x) * (1.0 - w.y)),
+        (1, 0, w.x * (1.0 - w.y)),
+        (0, 1, (1.0 - w.x) * w.y),
+        (1, 1, w.x * w.y),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let bx = b0.x as i64 + dx;
+        let by = b0.y as i64 + dy;
+        if bx < 0 || by < 0 || wt <= 0.0 {
+            continue;
+        }
+        if let Some(p) = patches.by_key.get(&(inst, region, bx as u32, by as u32)) {
+            out[slot] = Some((p.0, wt));
+            wsum += wt;
+        }
+    }
+    (out, wsum)
 }
 
 /// Fills `rings` rings of empty texels around covered ones with the mean of
@@ -248,6 +267,50 @@ pub fn build(
         pages,
         texel_values,
     }
+}
+
+/// Where [`build`]'s dilation puts each padding pixel's value from, as a
+/// copy: per page, (row-major pixel index, the 3 × 3 neighbour 0–8 in row
+/// order it copies) for every pixel within `rings` rings of a chart, ring
+/// by ring, each from its first covered (or already filled) 8-neighbour in
+/// row order. A run time that rewrites a page (`radbake_live`) fills its
+/// padding so, in this order, without [`dilate`]'s pass over the page.
+pub fn padding_sources(texels: &Texels, page_count: u32, rings: u32) -> Vec<Vec<(u32, u8)>> {
+    let (w, h) = (texels.width as i64, texels.height as i64);
+    (0..page_count.max(1))
+        .map(|p| {
+            let mut filled: Vec<bool> = (texels.index[p as usize].iter())
+                .map(|&e| e != crate::layout::texels::EMPTY_ENTRY)
+                .collect();
+            let mut out = Vec::new();
+            for _ in 0..rings {
+                let mut updates = Vec::new();
+                for y in 0..h {
+                    for x in 0..w {
+                        let i = (y * w + x) as usize;
+                        if filled[i] {
+                            continue;
+                        }
+                        let from = (0..9u8).find(|&n| {
+                            let (nx, ny) = (x + n as i64 % 3 - 1, y + n as i64 / 3 - 1);
+                            nx >= 0 && ny >= 0 && nx < w && ny < h && filled[(ny * w + nx) as usize]
+                        });
+                        if let Some(n) = from {
+                            updates.push((i as u32, n));
+                        }
+                    }
+                }
+                if updates.is_empty() {
+                    break;
+                }
+                for &(i, _) in &updates {
+                    filled[i as usize] = true;
+                }
+                out.extend(updates);
+            }
+            out
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -54,7 +54,7 @@ pub fn parse_weight(pair: &str) -> Result<(String, Vec3)> {
 }
 
 /// Reads `dir/name` as JSON.
-fn read_json(dir: &Path, name: &str) -> Result<Value> {
+pub(crate) fn read_json(dir: &Path, name: &str) -> Result<Value> {
     let path = dir.join(name);
     let bytes = std::fs::read(&path).map_err(|source| Error::Io {
         path: path.clone(),
@@ -102,8 +102,18 @@ fn weighted_layers(
         .collect())
 }
 
-/// Page `page` of every layer, weighted and summed.
-fn combined_page(dir: &Path, layers: &[(String, Vec3, Value)], page: usize) -> Result<Lightmaps> {
+/// One layer's pages given in place of its files (`radbake relight`'s
+/// live layer): its name, the pages' size and the pages, row-major RGB.
+pub type Replacement<'a> = Option<(&'a str, [u32; 2], &'a [Vec<Vec3>])>;
+
+/// Page `page` of every layer, weighted and summed (a `replace`d layer's
+/// from its given pages).
+fn combined_page(
+    dir: &Path,
+    layers: &[(String, Vec3, Value)],
+    page: usize,
+    replace: Replacement,
+) -> Result<Lightmaps> {
     let mut out: Option<Lightmaps> = None;
     for (name, w, entry) in layers {
         let file = entry["pages"][page]["exr"]
@@ -113,7 +123,18 @@ fn combined_page(dir: &Path, layers: &[(String, Vec3, Value)], page: usize) -> R
                 message: format!("layer `{name}` has no EXR for page {page}"),
             })?;
         let path = dir.join(file);
-        let (width, height, px) = read_exr_rgb(&path, "lightmap page", 1 << 16, 1 << 30)?;
+        let (width, height, px) = match replace {
+            Some((r, [w, h], pages)) if r == name => {
+                (w, h, pages.get(page).cloned().unwrap_or_default())
+            }
+            _ => read_exr_rgb(&path, "lightmap page", 1 << 16, 1 << 30)?,
+        };
+        if px.len() != width as usize * height as usize {
+            return Err(Error::Malformed {
+                path,
+                message: format!("{} pixels for a {width} × {height} page", px.len()),
+            });
+        }
         let lm = out.get_or_insert_with(|| Lightmaps {
             width,
             height,
@@ -190,11 +211,16 @@ type Recombined = (Vec<(String, Vec3, Value)>, Vec<Lightmaps>, Option<Probes>);
 /// The bake in `dir` (its `manifest.json` read as `manifest`) at
 /// `weights`: its layers, and its pages and probes as the layers'
 /// weighted sum.
-fn recombine(dir: &Path, manifest: &Value, weights: &[(String, Vec3)]) -> Result<Recombined> {
+fn recombine(
+    dir: &Path,
+    manifest: &Value,
+    weights: &[(String, Vec3)],
+    replace: Replacement,
+) -> Result<Recombined> {
     let layers = weighted_layers(dir, manifest, weights)?;
     let page_count = manifest["pages"].as_array().map_or(0, Vec::len);
     let pages: Vec<Lightmaps> = (0..page_count)
-        .map(|page| combined_page(dir, &layers, page))
+        .map(|page| combined_page(dir, &layers, page, replace))
         .collect::<Result<_>>()?;
     let probes = combined_probes(dir, &layers)?;
     Ok((layers, pages, probes))
@@ -212,7 +238,7 @@ pub fn recombined(
     weights: &[(String, Vec3)],
 ) -> Result<(Vec<Lightmaps>, Option<Probes>)> {
     let manifest = read_json(dir, "manifest.json")?;
-    let (_, pages, probes) = recombine(dir, &manifest, weights)?;
+    let (_, pages, probes) = recombine(dir, &manifest, weights, None)?;
     Ok((pages, probes))
 }
 
@@ -226,6 +252,22 @@ pub fn recombined(
 /// for a bake folder without layers or with a missing or mismatched file;
 /// [`Error::Io`] / [`Error::Encode`].
 pub fn combine(dir: &Path, weights: &[(String, Vec3)], out: &Path) -> Result<Vec<PathBuf>> {
+    combine_replacing(dir, weights, None, out, None)
+}
+
+/// [`combine`], with `replace`'s layer taken from its given pages (at its
+/// weight) rather than its files, and `note` (if any) added to the
+/// manifest under its key (`radbake relight`'s `relit`).
+///
+/// # Errors
+/// As [`combine`].
+pub fn combine_replacing(
+    dir: &Path,
+    weights: &[(String, Vec3)],
+    replace: Replacement,
+    out: &Path,
+    note: Option<(&str, Value)>,
+) -> Result<Vec<PathBuf>> {
     let same_folder = match (dir.canonicalize(), out.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,
@@ -240,7 +282,7 @@ pub fn combine(dir: &Path, weights: &[(String, Vec3)], out: &Path) -> Result<Vec
         });
     }
     let mut manifest = read_json(dir, "manifest.json")?;
-    let (layers, pages, probes) = recombine(dir, &manifest, weights)?;
+    let (layers, pages, probes) = recombine(dir, &manifest, weights, replace)?;
     std::fs::create_dir_all(out).map_err(|source| Error::Io {
         path: out.to_path_buf(),
         source,
@@ -304,6 +346,10 @@ pub fn combine(dir: &Path, weights: &[(String, Vec3)], out: &Path) -> Result<Vec
         "combined".into(),
         serde_json::json!({"from": dir.display().to_string(), "weights": w}),
     );
+    obj.remove("live");
+    if let Some((key, value)) = note {
+        obj.insert(key.into(), value);
+    }
     let path = out.join("manifest.json");
     super::write_json(&path, &manifest)?;
     written.push(path);

@@ -8,6 +8,7 @@ pub mod combine;
 pub mod ktx2;
 pub mod png8;
 pub mod probes;
+pub mod relight;
 pub mod sdf;
 pub mod shadowmask;
 
@@ -436,10 +437,35 @@ pub fn write_engine_outputs(
             "each layer's pages and probes hold its lights' share of the bake, in the units of the combined files; the bake at weights w is the sum over layers of w (RGB) times the layer; the combined pages and the .glb are that sum at weight 1"
         );
     }
+    if let Some(live) = &bake.live {
+        let path = out_dir.join(LIVE_FILE);
+        write_bytes_atomic(&path, &live.to_bytes())?;
+        written.push(path);
+        manifest["live"] = live_entry(live);
+    }
     let path = out_dir.join("manifest.json");
     write_json(&path, &manifest)?;
     written.push(path);
     Ok(written)
+}
+
+/// The live bake's file ([`radbake_live::format`]).
+pub const LIVE_FILE: &str = "live.bin";
+
+/// The manifest's `live` entry: the file, the layer its solution
+/// replaces, the live lights as baked, the sky's layer.
+fn live_entry(live: &radbake_live::LiveData) -> serde_json::Value {
+    let h = &live.header;
+    serde_json::json!({
+        "file": LIVE_FILE,
+        "version": h.version,
+        "layer": h.layer,
+        "grid": h.grid,
+        "patches": h.patches,
+        "lights": h.lights,
+        "sky": h.sky,
+        "convention": "the live layer's pages are the live lights' bounced light (irradiance / pi), re-solved at run time for a direction (towards the light, y up) and an irradiance (W/m2); the engine draws their direct light",
+    })
 }
 
 /// Writes `value` as pretty-printed JSON, atomically.

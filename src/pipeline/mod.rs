@@ -17,6 +17,7 @@
 pub mod first_pass;
 pub mod incremental;
 pub mod layered;
+pub mod live;
 pub mod log;
 pub mod maps;
 pub mod progress;
@@ -78,6 +79,9 @@ pub struct Bake<'s> {
     /// [`crate::scene::layers`]). Their pages are [`Maps::layers`], their
     /// probes [`Probes::layers`].
     pub layers: Option<crate::scene::layers::Layers>,
+    /// What the run time re-solves the live lights' bounce light from
+    /// (`live.bin`; `None` without live lights; see [`live`]).
+    pub live: Option<radbake_live::LiveData>,
     /// Wall time per stage.
     pub stages: Vec<StageTime>,
     /// Non-fatal problems.
@@ -120,6 +124,9 @@ pub fn bake_with<'s>(
     check_inputs(scene, config)?;
     // The sky map is read (and refused) before any work is done.
     let sky = config.load_sky()?;
+    // A uniform sky in a live bake: its own layer, so its colour can change.
+    let config = &live::effective_config(scene, config, &sky);
+    live::check(scene, config)?;
     let layers = crate::scene::layers::resolve(scene, config, sky.is_black())?;
     if layers.is_some() {
         layered::check(config, shard)?;
@@ -188,6 +195,11 @@ pub fn bake_with<'s>(
 
     let shadowmask = shadowmask(&surfaces, atlas.page_count, &light.valid, config, &mut log);
 
+    let live = match &layers {
+        Some(l) => live::build(&surfaces, (config, &sky, l), &light, atlas.page_count, &mut log)?,
+        None => None,
+    };
+
     let probes = config.probes.then(|| {
         log.begin("probes", 0);
         let progress = log.progress();
@@ -239,6 +251,7 @@ pub fn bake_with<'s>(
         probes,
         sdf,
         layers,
+        live,
         stages: log.stages,
         warnings: log.warnings,
     })

@@ -525,6 +525,13 @@ fn add_light(ctx: &Ctx, document: &gltf::Document, at: &NodeAt, scene: &mut Scen
         light.mode = extras.mode.unwrap_or_default();
         light.layer = extras.layer.clone();
         let directional = light.kind == LightKind::Directional;
+        if extras.sun_path.is_some() && !directional {
+            scene.warnings.push(format!(
+                "{location}.extras.radbake.sun_path: only a directional light has a sun path; ignored"
+            ));
+        } else {
+            light.sun_path = extras.sun_path.clone();
+        }
         if let Some(r) = extras.radius {
             if directional {
                 scene.warnings.push(format!(
@@ -647,6 +654,8 @@ struct NodeExtras {
     lightmap: Option<bool>,
     /// `layer`: the light layer of the node's light.
     layer: Option<String>,
+    /// `sun_path`: a live sun's path.
+    sun_path: Option<crate::scene::sun_path::SunPath>,
     /// Keys this version does not know (warned about).
     unknown: Vec<String>,
 }
@@ -726,15 +735,75 @@ fn radbake_extras(ctx: &Ctx, node: &gltf::Node, location: &str) -> Result<NodeEx
                 })?);
             }
             "layer" => out.layer = Some(layer_name(ctx, &at, v)?),
+            "sun_path" => out.sun_path = Some(sun_path(ctx, &format!("{at}.sun_path"), v)?),
             // Written by radbake on a baked file's shadowmask lights (the
             // channel it assigned); a bake assigns channels afresh.
             "shadowmask_channel" => {}
             other => out.unknown.push(format!(
-                "{at}: unknown key `{other}` ignored (known: angle, cast_shadows, dynamic, layer, lightmap, mode, probe_volume, radius, shadowmask_channel, texel_scale)"
+                "{at}: unknown key `{other}` ignored (known: angle, cast_shadows, dynamic, layer, lightmap, mode, probe_volume, radius, shadowmask_channel, sun_path, texel_scale)"
             )),
         }
     }
     Ok(out)
+}
+
+/// `extras.radbake.sun_path`: a list of directions `[x, y, z]` towards
+/// the sun (at most 4096), or `{"latitude": deg, "day": 1–366,
+/// "samples": n}` (see [`crate::scene::sun_path`]); a path on which the
+/// sun never rises is an error.
+fn sun_path(ctx: &Ctx, at: &str, v: &serde_json::Value) -> Result<crate::scene::sun_path::SunPath> {
+    use crate::scene::sun_path::{SunPath, DEFAULT_SAMPLES};
+    let path = if let Some(list) = v.as_array() {
+        let dir = |d: &serde_json::Value| -> Option<glam::Vec3> {
+            let a = d.as_array().filter(|a| a.len() == 3)?;
+            let v = glam::Vec3::new(
+                a[0].as_f64()? as f32,
+                a[1].as_f64()? as f32,
+                a[2].as_f64()? as f32,
+            );
+            (v.is_finite() && v.length() > 1e-6).then(|| v.normalize())
+        };
+        let dirs: Option<Vec<glam::Vec3>> = list.iter().map(dir).collect();
+        match dirs {
+            Some(d) if !d.is_empty() && d.len() <= 4096 => SunPath::Directions(d),
+            _ => {
+                return Err(ctx.invalid(
+                    at.to_owned(),
+                    "must be 1 to 4096 directions [x, y, z] (towards the sun, finite, not of zero length), or {\"latitude\", \"day\", \"samples\"}",
+                ))
+            }
+        }
+    } else {
+        let num = |key: &str| v.get(key).and_then(serde_json::Value::as_f64);
+        let (Some(latitude), Some(day)) = (num("latitude"), num("day")) else {
+            return Err(ctx.invalid(
+                at.to_owned(),
+                "must be a list of directions or an object with `latitude` (degrees) and `day` (1–366)",
+            ));
+        };
+        let samples = match v.get("samples") {
+            None => DEFAULT_SAMPLES as f64,
+            Some(n) => n.as_f64().unwrap_or(-1.0),
+        };
+        if !(-90.0..=90.0).contains(&latitude)
+            || !(1.0..=366.0).contains(&day)
+            || !(2.0..=4096.0).contains(&samples)
+            || samples.fract() != 0.0
+        {
+            return Err(ctx.invalid(
+                at.to_owned(),
+                "latitude must be in −90..90 degrees, day in 1..366, samples a whole number in 2..4096",
+            ));
+        }
+        SunPath::Day {
+            latitude: latitude as f32,
+            day: day as f32,
+            samples: samples as u32,
+        }
+    };
+    path.directions()
+        .map_err(|m| ctx.invalid(at.to_owned(), m))?;
+    Ok(path)
 }
 
 /// Every buffer's bytes, and the external files read.

@@ -8,7 +8,7 @@
 //! surface's its material's, the sky's the `sky_layer` setting; anything
 //! that names none is in [`STATIC_LAYER`].
 
-use crate::config::{BakeConfig, LayerMode, LightMode, STATIC_LAYER};
+use crate::config::{BakeConfig, LayerMode, LightMode, LIVE_LAYER, STATIC_LAYER};
 use crate::error::{Error, Result};
 use crate::scene::Scene;
 
@@ -64,7 +64,10 @@ impl Layers {
 /// [`Error::Config`] for a layer on a `realtime` light (it is not baked:
 /// the layer would hold nothing of it).
 pub fn resolve(scene: &Scene, config: &BakeConfig, sky_black: bool) -> Result<Option<Layers>> {
-    let named = scene.lights.iter().any(|l| l.layer.is_some())
+    let named = scene
+        .lights
+        .iter()
+        .any(|l| l.layer.is_some() || l.mode == LightMode::Live)
         || scene.materials.iter().any(|m| m.layer.is_some())
         || config.sky_layer.is_some();
     if config.layers == LayerMode::Off || !named {
@@ -83,9 +86,14 @@ pub fn resolve(scene: &Scene, config: &BakeConfig, sky_black: bool) -> Result<Op
             ),
         });
     }
+    check_live(scene, config)?;
     let name = |n: &Option<String>| n.clone().unwrap_or_else(|| STATIC_LAYER.to_owned());
     let light: Vec<Option<String>> = (scene.lights.iter())
-        .map(|l| (l.mode != LightMode::Realtime).then(|| name(&l.layer)))
+        .map(|l| match l.mode {
+            LightMode::Realtime => None,
+            LightMode::Live => Some(LIVE_LAYER.to_owned()),
+            _ => Some(name(&l.layer)),
+        })
         .collect();
     let material: Vec<Option<String>> = (scene.materials.iter())
         .map(|m| m.is_emissive().then(|| name(&m.layer)))
@@ -104,6 +112,54 @@ pub fn resolve(scene: &Scene, config: &BakeConfig, sky_black: bool) -> Result<Op
         sky: index(&sky),
         names,
     }))
+}
+
+/// The layer [`LIVE_LAYER`] holds the live lights' bounced light and
+/// nothing else: the run time replaces its pages.
+///
+/// # Errors
+/// [`Error::Config`] for a live light whose node names another layer, or
+/// for anything else in layer `live`.
+fn check_live(scene: &Scene, config: &BakeConfig) -> Result<()> {
+    let bad = |message: String| {
+        Err(Error::Config {
+            key: "layers".into(),
+            message,
+        })
+    };
+    for l in &scene.lights {
+        match (l.mode == LightMode::Live, l.layer.as_deref()) {
+            (true, Some(layer)) if layer != LIVE_LAYER => {
+                return bad(format!(
+                    "light `{}` is live, so its bounced light is in layer `{LIVE_LAYER}`, but its node names layer `{layer}`: remove the layer",
+                    l.name
+                ))
+            }
+            (false, Some(LIVE_LAYER)) => {
+                return bad(format!(
+                    "light `{}` names layer `{LIVE_LAYER}`, which holds only the live lights' bounced light: give it another layer or mode `live`",
+                    l.name
+                ))
+            }
+            _ => {}
+        }
+    }
+    let material = scene
+        .materials
+        .iter()
+        .find(|m| m.layer.as_deref() == Some(LIVE_LAYER));
+    if let Some(m) = material {
+        return bad(format!(
+            "material `{}` names layer `{LIVE_LAYER}`, which holds only the live lights' bounced light",
+            m.name
+        ));
+    }
+    if config.sky_layer.as_deref() == Some(LIVE_LAYER) {
+        return bad(format!(
+            "sky_layer `{LIVE_LAYER}`: that layer holds only the live lights' bounced light"
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

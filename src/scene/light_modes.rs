@@ -33,7 +33,7 @@ impl LightModes {
         for light in &mut scene.lights {
             light.mode = self.resolve(light);
         }
-        Ok(())
+        check_live(scene)
     }
 
     /// Checks that `scene`'s lights have the modes these settings give
@@ -54,7 +54,7 @@ impl LightModes {
                     self.resolve(l).name()
                 ),
             }),
-            None => Ok(()),
+            None => check_live(scene),
         }
     }
 
@@ -80,5 +80,30 @@ impl LightModes {
             }
         }
         Ok(())
+    }
+}
+
+/// `live` is for directional lights only: the run time re-solves the
+/// bounce light for a direction, not for a position.
+///
+/// # Errors
+/// [`Error::Config`] naming the first point or spot light in mode `live`.
+fn check_live(scene: &Scene) -> Result<()> {
+    match (scene.lights.iter())
+        .find(|l| l.mode == LightMode::Live && l.kind != LightKind::Directional)
+    {
+        Some(l) => Err(Error::Config {
+            key: "light_modes".into(),
+            message: format!(
+                "light `{}` (node `{}`) is a {} light in mode `live`: `live` is for directional lights only",
+                l.name,
+                l.node,
+                match l.kind {
+                    LightKind::Point => "point",
+                    _ => "spot",
+                }
+            ),
+        }),
+        None => Ok(()),
     }
 }

@@ -9,6 +9,7 @@ mod gltf;
 pub mod layers;
 pub mod light_modes;
 pub mod probe_volume;
+pub mod sun_path;
 pub mod texture;
 
 pub use self::gltf::{load, LoadOptions};
@@ -237,6 +238,9 @@ pub struct Light {
     /// The light layer (the node's `extras.radbake.layer`; `None`: the
     /// layer `static`). See [`crate::scene::layers`].
     pub layer: Option<String>,
+    /// A live sun's path (the node's `extras.radbake.sun_path`): the
+    /// directions its sun table is made for (`None`: the hemisphere's grid).
+    pub sun_path: Option<sun_path::SunPath>,
 }
 
 impl Light {
@@ -261,6 +265,7 @@ impl Light {
             range: None,
             radius: 0.0,
             angle: 0.0,
+            sun_path: None,
             layer: None,
         }
     }

@@ -1,0 +1,462 @@
+//! The run-time solve ([`Live::update`]): the sun's direct light on the
+//! patches, Jacobi iterations warm-started from the last solution, and the
+//! texels' bounce light reconstructed from the patches.
+
+use crate::directions;
+use crate::format::LiveData;
+use crate::{LiveError, Result};
+use rayon::prelude::*;
+
+/// A live light's state at run time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sun {
+    /// Towards the light (any length > 0; y up, as glTF).
+    pub direction: [f32; 3],
+    /// Irradiance on a surface facing it, W/m² (linear RGB).
+    pub irradiance: [f32; 3],
+}
+
+impl Sun {
+    /// The unit direction.
+    ///
+    /// # Errors
+    /// [`LiveError::Input`] for a direction of zero length or not finite.
+    pub fn unit(&self) -> Result<[f32; 3]> {
+        let d = self.direction;
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if !len.is_finite() || len < 1e-12 {
+            return Err(LiveError::Input(format!(
+                "sun direction {d:?}: of zero length or not finite"
+            )));
+        }
+        if !self.irradiance.iter().all(|x| x.is_finite() && *x >= 0.0) {
+            return Err(LiveError::Input(format!(
+                "sun irradiance {:?}: must be finite and ≥ 0",
+                self.irradiance
+            )));
+        }
+        Ok([d[0] / len, d[1] / len, d[2] / len])
+    }
+}
+
+/// What one solve did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Solve {
+    /// Jacobi iterations run.
+    pub iterations: u32,
+    /// Σ|ΔL| / Σ|L| of the last one.
+    pub residual: f32,
+}
+
+/// A live bake at run time: its data and the current solution.
+pub struct Live {
+    data: LiveData,
+    /// F's entries as f32 (decoded once).
+    vals: Vec<f32>,
+    /// Per patch: D (irradiance / π) of the current suns.
+    direct: Vec<[f32; 3]>,
+    /// Per patch: outgoing radiance L (warm start of the next solve).
+    radiance: Vec<[f32; 3]>,
+    /// Per patch: F L, the bounce light arriving (irradiance / π).
+    indirect: Vec<[f32; 3]>,
+}
+
+impl Live {
+    /// The runtime of `data`, its solution zero (no sun yet).
+    pub fn new(data: LiveData) -> Live {
+        let p = data.header.patches as usize;
+        let vals = data
+            .matrix
+            .vals
+            .iter()
+            .map(|&v| half::f16::from_bits(v).to_f32())
+            .collect();
+        Live {
+            data,
+            vals,
+            direct: vec![[0.0; 3]; p],
+            radiance: vec![[0.0; 3]; p],
+            indirect: vec![[0.0; 3]; p],
+        }
+    }
+
+    /// The file's content.
+    pub fn data(&self) -> &LiveData {
+        &self.data
+    }
+
+    /// Per patch, the current suns' direct light D (irradiance / π).
+    pub fn patch_direct(&self) -> &[[f32; 3]] {
+        &self.direct
+    }
+
+    /// Per patch, the current bounce light F L (irradiance / π).
+    pub fn patch_indirect(&self) -> &[[f32; 3]] {
+        &self.indirect
+    }
+
+    /// Per patch, the current outgoing radiance L.
+    pub fn patch_radiance(&self) -> &[[f32; 3]] {
+        &self.radiance
+    }
+
+    /// Sets the live lights (one [`Sun`] per [`crate::Header::lights`],
+    /// in order) and solves to the bake's tolerance from the last solution.
+    ///
+    /// # Errors
+    /// [`LiveError::Input`] for the wrong number of suns or a bad one.
+    pub fn update(&mut self, suns: &[Sun]) -> Result<Solve> {
+        self.set_suns(suns)?;
+        Ok(self.solve(self.data.header.max_iterations))
+    }
+
+    /// D for `suns`: per patch, Σ over the lights of E × the four grid
+    /// directions' table values weighted bilinearly ([`directions::weights`]).
+    ///
+    /// # Errors
+    /// As [`Live::update`].
+    pub fn set_suns(&mut self, suns: &[Sun]) -> Result<()> {
+        let h = &self.data.header;
+        if suns.len() != h.lights.len() {
+            return Err(LiveError::Input(format!(
+                "{} sun(s) given, the bake has {} live light(s)",
+                suns.len(),
+                h.lights.len()
+            )));
+        }
+        let p = h.patches as usize;
+        let mut terms = Vec::new();
+        for ((sun, table), light) in suns.iter().zip(&self.data.suns).zip(&h.lights) {
+            let d = sun.unit()?;
+            let w: Option<Vec<(u32, f32)>> = match &light.path {
+                Some(path) => directions::path_weights(path, d).map(|w| w.to_vec()),
+                None => directions::weights(h.grid, d).map(|w| w.to_vec()),
+            };
+            if let Some(w) = w {
+                // Table bytes are π D × 255 for a unit sun.
+                let scale = sun.irradiance.map(|e| e / (255.0 * std::f32::consts::PI));
+                for (k, wk) in w {
+                    if wk > 0.0 {
+                        let at = k as usize * p;
+                        terms.push((&table[at..at + p], wk, scale));
+                    }
+                }
+            }
+        }
+        self.direct.par_iter_mut().enumerate().for_each(|(i, d)| {
+            let mut v = [0.0f32; 3];
+            for (t, wk, scale) in &terms {
+                let x = t[i] as f32 * wk;
+                for c in 0..3 {
+                    v[c] += x * scale[c];
+                }
+            }
+            *d = v;
+        });
+        Ok(())
+    }
+
+    /// Sets the patches' direct light D (irradiance / π) as given, in
+    /// place of [`Live::set_suns`]' (a check against an exact D, or a run
+    /// time that computes its own).
+    ///
+    /// # Errors
+    /// [`LiveError::Input`] for a length other than the patch count or a
+    /// value negative or not finite.
+    pub fn set_direct(&mut self, direct: &[[f32; 3]]) -> Result<()> {
+        if direct.len() != self.direct.len()
+            || direct
+                .iter()
+                .flatten()
+                .any(|v| !(v.is_finite() && *v >= 0.0))
+        {
+            return Err(LiveError::Input(format!(
+                "direct light: {} values for {} patches, each finite and ≥ 0",
+                direct.len(),
+                self.direct.len()
+            )));
+        }
+        self.direct.copy_from_slice(direct);
+        Ok(())
+    }
+
+    /// Jacobi iterations L ← ρ ⊙ (D + F L) from the current L until the
+    /// relative change Σ|ΔL| / Σ|L| is below the bake's tolerance, at most
+    /// `max_iterations`. Rows are summed in column order, so the result
+    /// does not depend on the thread count.
+    pub fn solve(&mut self, max_iterations: u32) -> Solve {
+        let tolerance = self.data.header.tolerance;
+        let mut out = Solve::default();
+        while out.iterations < max_iterations {
+            self.indirect = self.product(&self.radiance);
+            let next: Vec<[f32; 3]> = (self.direct.par_iter().zip(&self.indirect))
+                .zip(&self.data.albedo)
+                .map(|((d, f), a)| [0, 1, 2].map(|c| a[c] * (d[c] + f[c])))
+                .collect();
+            out.residual = relative_change(&next, &self.radiance);
+            self.radiance = next;
+            out.iterations += 1;
+            if out.residual < tolerance {
+                break;
+            }
+        }
+        // The bounce light of the final L.
+        self.indirect = self.product(&self.radiance);
+        out
+    }
+
+    /// F x, one row per task.
+    fn product(&self, x: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        let m = &self.data.matrix;
+        (0..self.data.header.patches as usize)
+            .into_par_iter()
+            .map(|i| {
+                let (lo, hi) = (m.rows[i] as usize, m.rows[i + 1] as usize);
+                let mut acc = [0.0f32; 3];
+                for (f, &j) in self.vals[lo..hi].iter().zip(&m.cols[lo..hi]) {
+                    let v = x[j as usize];
+                    acc[0] += f * v[0];
+                    acc[1] += f * v[1];
+                    acc[2] += f * v[2];
+                }
+                acc
+            })
+            .collect()
+    }
+
+    /// Per texel, the live lights' bounce light (irradiance / π): the
+    /// patches' F L interpolated bilinearly between the centres of the
+    /// patches at its corners (the weights from its pixel's place in its
+    /// k × k block, as the bake computes them), shifted per patch to keep
+    /// the patch's mean, clamped at 0 (the bake's first pass).
+    pub fn texels(&self) -> Vec<[f32; 3]> {
+        let h = &self.data.header;
+        let t = &self.data.texels;
+        let values = &self.indirect;
+        let k = h.block as f32;
+        let bil: Vec<[f32; 3]> = (0..t.patch.len())
+            .into_par_iter()
+            .map(|i| {
+                let width = h.pages[t.page[i] as usize].width;
+                let (x, y) = (t.pixel[i] % width, t.pixel[i] / width);
+                let (fx, fy) = ((x as f32 + 0.5) / k - 0.5, (y as f32 + 0.5) / k - 0.5);
+                let (wx, wy) = (fx - fx.floor(), fy - fy.floor());
+                let w = [
+                    (1.0 - wx) * (1.0 - wy),
+                    wx * (1.0 - wy),
+                    (1.0 - wx) * wy,
+                    wx * wy,
+                ];
+                let (mut acc, mut wsum) = ([0.0f32; 3], 0.0f32);
+                for (&q, wt) in t.corners[i].iter().zip(w) {
+                    if q != u32::MAX {
+                        for c in 0..3 {
+                            acc[c] += values[q as usize][c] * wt;
+                        }
+                        wsum += wt;
+                    }
+                }
+                if wsum > 0.0 {
+                    acc.map(|a| a / wsum)
+                } else {
+                    values[t.patch[i] as usize]
+                }
+            })
+            .collect();
+        let mut mean = vec![[0.0f32; 3]; values.len()];
+        for ((b, &p), s) in bil.iter().zip(&t.patch).zip(&t.share) {
+            for c in 0..3 {
+                mean[p as usize][c] += b[c] * s;
+            }
+        }
+        bil.par_iter()
+            .zip(&t.patch)
+            .map(|(b, &p)| {
+                let p = p as usize;
+                [0, 1, 2].map(|c| (b[c] + values[p][c] - mean[p][c]).max(0.0))
+            })
+            .collect()
+    }
+
+    /// The live layer's pages (row-major RGB per page, irradiance / π):
+    /// each texel at its pixel, the padding rings copied ring by ring from
+    /// their neighbours (the bake's dilation, as copies), every other
+    /// pixel 0.
+    pub fn pages(&self) -> Vec<Vec<[f32; 3]>> {
+        let mut pages = Vec::new();
+        self.write_pages(&mut pages);
+        pages
+    }
+
+    /// [`Live::pages`] into `pages`, reusing its buffers (an engine's
+    /// frame loop: no page-sized allocation per update). Pixels no texel
+    /// or padding covers keep what they hold (0 in fresh buffers).
+    pub fn write_pages(&self, pages: &mut Vec<Vec<[f32; 3]>>) {
+        let texels = self.texels();
+        let h = &self.data.header;
+        pages.resize_with(h.pages.len(), Vec::new);
+        for (page, s) in pages.iter_mut().zip(&h.pages) {
+            page.resize(s.width as usize * s.height as usize, [0.0; 3]);
+        }
+        let t = &self.data.texels;
+        for ((v, &i), &page) in texels.iter().zip(&t.pixel).zip(&t.page) {
+            pages[page as usize][i as usize] = *v;
+        }
+        for ((page, list), size) in pages.iter_mut().zip(&t.padding).zip(&h.pages) {
+            let w = size.width as i64;
+            for &(i, n) in list {
+                let from = i as i64 + (n as i64 / 3 - 1) * w + (n as i64 % 3 - 1);
+                page[i as usize] = page[from as usize];
+            }
+        }
+    }
+}
+
+/// Σ|a − b| / Σ|a| (0 when a is all zero), summed in order.
+fn relative_change(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
+    let (mut change, mut total) = (0.0f64, 0.0f64);
+    for (x, y) in a.iter().zip(b) {
+        for c in 0..3 {
+            change += (x[c] - y[c]).abs() as f64;
+            total += x[c].abs() as f64;
+        }
+    }
+    if total > 0.0 {
+        (change / total) as f32
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::format::{Header, LiveLight, Matrix, PageSize, TexelMap};
+
+    /// Two facing patches (F₀₁ = F₁₀ = f), one texel each, a 2 × 1 page.
+    fn two_patches(f: f32, rho: f32) -> LiveData {
+        let grid = 3;
+        let dirs = (grid * grid) as usize;
+        // Patch 0 fully lit by every direction, patch 1 never.
+        let mut sun = vec![0u8; dirs * 2];
+        for k in 0..dirs {
+            sun[k * 2] = 255;
+        }
+        LiveData {
+            header: Header {
+                version: crate::format::VERSION,
+                patches: 2,
+                texels: 2,
+                entries: 2,
+                block: 1,
+                grid,
+                pages: vec![PageSize {
+                    width: 3,
+                    height: 1,
+                }],
+                padding: vec![1],
+                tolerance: 1e-6,
+                max_iterations: 200,
+                layer: "live".into(),
+                lights: vec![LiveLight {
+                    name: "sun".into(),
+                    direction: [0.0, 1.0, 0.0],
+                    irradiance: [1.0; 3],
+                    path: None,
+                }],
+                sky: None,
+            },
+            albedo: vec![[rho; 3]; 2],
+            matrix: Matrix {
+                rows: vec![0, 1, 2],
+                cols: vec![1, 0],
+                vals: vec![half::f16::from_f32(f).to_bits(); 2],
+            },
+            suns: vec![sun],
+            texels: TexelMap {
+                patch: vec![0, 1],
+                share: vec![1.0, 1.0],
+                corners: vec![
+                    [0, u32::MAX, u32::MAX, u32::MAX],
+                    [1, u32::MAX, u32::MAX, u32::MAX],
+                ],
+                pixel: vec![0, 1],
+                page: vec![0, 0],
+                // Pixel 2 copies its left neighbour (3 × 3 index 3).
+                padding: vec![vec![(2, 3)]],
+            },
+        }
+    }
+
+    #[test]
+    fn two_patches_match_the_closed_form() {
+        // D₀ = E/π, D₁ = 0; L₀ = ρ(D₀ + f L₁), L₁ = ρ f L₀ ⇒
+        // L₀ = ρ D₀ / (1 − ρ² f²), and the texels get F L.
+        let (f, rho) = (0.5f32, 0.8f32);
+        let data = two_patches(f, rho);
+        let f = half::f16::from_f32(f).to_f32();
+        let mut live = Live::new(data);
+        let s = live
+            .update(&[Sun {
+                direction: [0.2, 1.0, 0.1],
+                irradiance: [3.0; 3],
+            }])
+            .unwrap();
+        assert!(s.residual < 1e-6);
+        let d0 = 3.0 / std::f32::consts::PI;
+        let l0 = rho * d0 / (1.0 - rho * rho * f * f);
+        let l1 = rho * f * l0;
+        let t = live.texels();
+        assert!((t[0][1] - f * l1).abs() < 1e-5 * l0, "{:?}", t[0]);
+        assert!((t[1][2] - f * l0).abs() < 1e-5 * l0, "{:?}", t[1]);
+        assert_eq!(live.pages()[0][1], t[1]);
+        assert_eq!(live.pages()[0][2], t[1], "the padding copies its neighbour");
+    }
+
+    #[test]
+    fn a_sun_below_the_horizon_lights_nothing_and_bad_suns_are_errors() {
+        let mut live = Live::new(two_patches(0.5, 0.8));
+        live.update(&[Sun {
+            direction: [0.0, -1.0, 0.0],
+            irradiance: [1.0; 3],
+        }])
+        .unwrap();
+        assert_eq!(live.texels(), vec![[0.0; 3]; 2]);
+        for d in [[0.0; 3], [f32::NAN, 1.0, 0.0]] {
+            let e = live
+                .update(&[Sun {
+                    direction: d,
+                    irradiance: [1.0; 3],
+                }])
+                .unwrap_err();
+            assert!(e.to_string().contains("zero length or not finite"), "{e}");
+        }
+        assert!(live.update(&[]).is_err());
+    }
+
+    #[test]
+    fn the_file_round_trips_and_damage_is_named() {
+        let data = two_patches(0.5, 0.8);
+        let bytes = data.to_bytes();
+        assert_eq!(LiveData::from_bytes(&bytes).unwrap(), data);
+        let msg = |b: &[u8]| LiveData::from_bytes(b).unwrap_err().to_string();
+        assert!(msg(&bytes[..bytes.len() - 3]).contains("truncated"));
+        assert!(msg(&bytes[..10]).contains("truncated"));
+        let mut flipped = bytes.clone();
+        *flipped.last_mut().unwrap() ^= 0x40;
+        assert!(msg(&flipped).contains("checksum"));
+        let mut magic = bytes.clone();
+        magic[0] = b'X';
+        assert!(msg(&magic).contains("magic"));
+        // A valid checksum over an index out of range: named, not a panic.
+        let mut bad = data.clone();
+        bad.texels.patch[1] = 7;
+        assert!(msg(&bad.to_bytes()).contains("patch out of range"));
+        let mut bad = data.clone();
+        bad.matrix.cols[0] = 2;
+        assert!(msg(&bad.to_bytes()).contains("columns out of order or range"));
+        let mut bad = data;
+        bad.texels.padding[0][0].1 = 5; // right of the last pixel
+        assert!(msg(&bad.to_bytes()).contains("neighbour out of its page"));
+    }
+}

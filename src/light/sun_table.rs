@@ -1,0 +1,109 @@
+//! A live light's sun table: each patch's direct light from a sun of unit
+//! irradiance, for every direction of the live grid
+//! ([`radbake_live::directions`]), for the run time to interpolate.
+//!
+//! Each texel's value for direction ωₖ is what the direct-light stage
+//! gives it for a directional light from ωₖ ([`TexelPieces::light`]: the
+//! unshadowed irradiance summed exactly over the texel's pieces, its lit
+//! fraction from shadow rays), and the patch's the area-weighted mean of
+//! its texels', as the bake's patch direct light is
+//! ([`crate::pipeline::first_pass`]). At a grid direction the table is
+//! therefore the bake's patch direct light for that sun, to the byte's
+//! precision: stored as round(255 π D), D = irradiance / π per W/m².
+
+use crate::light::direct::TexelPieces;
+use crate::light::lights::PURPOSE_EXTENT;
+use crate::scene::Light;
+use crate::surface::Surfaces;
+use crate::util::sampling::Stream;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// The table of `light` (a directional light: its size and mode are
+/// kept, its direction and intensity replaced) over `grid` × `grid`
+/// directions: grid² × P bytes, direction-major. `advance` is called with
+/// each patch's texel count.
+pub fn sun_table(
+    s: &Surfaces,
+    light: &Light,
+    grid: u32,
+    seed: u64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Vec<u8> {
+    let towards: Vec<Vec3> = (0..grid * grid)
+        .map(|k| Vec3::from(radbake_live::directions::node_direction(grid, k % grid, k / grid)))
+        .collect();
+    quantised(&patch_direct(s, light, &towards, seed, advance), towards.len())
+}
+
+/// The table of `light` along a sun path: one direction per sample of
+/// `path` (towards the sun, unit), direction-major as [`sun_table`].
+pub fn sun_table_along(
+    s: &Surfaces,
+    light: &Light,
+    path: &[Vec3],
+    seed: u64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Vec<u8> {
+    quantised(&patch_direct(s, light, path, seed, advance), path.len())
+}
+
+/// Per patch rows of D into the table's bytes, direction-major.
+fn quantised(per_patch: &[Vec<f32>], n: usize) -> Vec<u8> {
+    let p = per_patch.len();
+    let mut table = vec![0u8; n * p];
+    for (i, row) in per_patch.iter().enumerate() {
+        for (k, &v) in row.iter().enumerate() {
+            let q = (v * 255.0 * std::f32::consts::PI).round().clamp(0.0, 255.0);
+            table[k * p + i] = q as u8;
+        }
+    }
+    table
+}
+
+/// Per patch, per direction of `towards` (unit, towards the light): the
+/// patch's direct light D (irradiance / π) from `light` turned to that
+/// direction at unit irradiance, unquantised (see the module).
+pub fn patch_direct(
+    s: &Surfaces,
+    light: &Light,
+    towards: &[Vec3],
+    seed: u64,
+    advance: &(dyn Fn(u64) + Sync),
+) -> Vec<Vec<f32>> {
+    let dirs: Vec<Light> = (towards.iter())
+        .map(|&d| Light {
+            direction: -d,
+            intensity: Vec3::ONE,
+            ..light.clone()
+        })
+        .collect();
+    let n = dirs.len();
+    (0..s.patches.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut acc = vec![0.0f32; n];
+            let texels = s.patches.texels_of(i);
+            for &t in texels {
+                let t = t as usize;
+                if s.burial.enclosed(t) {
+                    continue; // inside a solid: nothing arrives
+                }
+                let Some(mut pieces) = TexelPieces::new(s, t) else {
+                    continue;
+                };
+                let area = s.texels.area[t];
+                for (k, l) in dirs.iter().enumerate() {
+                    // The direct stage's stream for the texel's first light.
+                    let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
+                    if let Some(seen) = pieces.light(s, l, &mut rng) {
+                        acc[k] += seen.unshadowed.x * seen.visible * area;
+                    }
+                }
+            }
+            advance(texels.len() as u64);
+            let a = s.patches.area[i];
+            acc.iter().map(|v| v / a).collect()
+        })
+        .collect()
+}

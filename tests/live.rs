@@ -1,0 +1,245 @@
+//! Live radiosity (`--live`, `live.bin`, `radbake relight`): exact where it
+//! must be, the relit folder, bad input. The comparison with full bakes on
+//! Sponza is `tools/live_accuracy.rs` (docs/live.md).
+
+mod common;
+
+use common::{run_ok, scene_path, temp_dir};
+use glam::Vec3;
+use radbake::config::LightMode;
+use radbake::util::files::read_exr_rgb;
+use radbake::{BakeConfig, Silent};
+use radbake_live::{Live, Sun};
+use std::path::Path;
+use std::process::Command;
+
+/// The porch baked with its sun live (sun only), the sun turned to a
+/// direction of the table's grid.
+fn porch_at_node() -> (radbake::scene::Scene, BakeConfig, Vec3) {
+    let mut scene = radbake::scene::load(&scene_path("porch.gltf"), &Default::default()).unwrap();
+    let mut config = BakeConfig {
+        texels_per_meter: 4.0,
+        final_gather: 0,
+        stitch_seams: false,
+        ..BakeConfig::default()
+    };
+    config
+        .light_modes
+        .lights
+        .insert("sun".into(), LightMode::Live);
+    config.light_modes.apply(&mut scene).unwrap();
+    let towards = Vec3::from(radbake_live::directions::node_direction(
+        config.live_grid,
+        7,
+        4,
+    ));
+    assert!(towards.y > 0.3, "{towards}");
+    scene.lights[0].direction = -towards;
+    (scene, config, towards)
+}
+
+#[test]
+fn at_a_table_direction_the_live_solve_is_the_bakes() {
+    let (scene, config, towards) = porch_at_node();
+    let bake = radbake::bake(&scene, &config, &Silent).unwrap();
+    let data = bake.live.clone().expect("live data");
+    let baked = bake.transport.patch_light.as_ref().unwrap();
+    let e = scene.lights[0].intensity;
+    let mut live = Live::new(data);
+    live.set_suns(&[Sun {
+        direction: towards.to_array(),
+        irradiance: e.to_array(),
+    }])
+    .unwrap();
+    // The table's D is the bake's patch direct light, to the byte.
+    let step = e.max_element() / (255.0 * std::f32::consts::PI);
+    let mut worst = 0.0f32;
+    for (d, b) in live.patch_direct().iter().zip(&baked.direct) {
+        worst = worst.max((Vec3::from(*d) - *b).abs().max_element());
+    }
+    let lit = baked.direct.iter().filter(|d| d.x > 0.0).count();
+    assert!(lit > baked.direct.len() / 4, "{lit} lit patches");
+    assert!(
+        worst <= 0.5 * step * 1.001 + 1e-6,
+        "worst {worst} vs half a byte {}",
+        0.5 * step
+    );
+    // From the bake's D, the solve is the bake's to the tolerance (and F's f16).
+    let d: Vec<[f32; 3]> = baked.direct.iter().map(|v| v.to_array()).collect();
+    live.set_direct(&d).unwrap();
+    let s = live.solve(config.max_iterations);
+    assert!(s.residual < config.tolerance, "{s:?}");
+    let rel = |a: &[[f32; 3]], b: &[Vec3]| {
+        let num: f32 = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| (Vec3::from(*x) - *y).abs().element_sum())
+            .sum();
+        num / b.iter().map(|y| y.abs().element_sum()).sum::<f32>()
+    };
+    let radiance = rel(live.patch_radiance(), &baked.solution.radiance);
+    assert!(radiance < 2e-3, "patch radiance off by {radiance}");
+    // The texels: the live layer's first pass, on the valid texels.
+    let k = bake
+        .layers
+        .as_ref()
+        .unwrap()
+        .names
+        .iter()
+        .position(|n| n == "live")
+        .unwrap();
+    let valid = &bake.transport.valid;
+    let texels = live.texels();
+    let keep = |t: &usize| valid[*t];
+    let a: Vec<[f32; 3]> = (0..texels.len()).filter(keep).map(|t| texels[t]).collect();
+    let b: Vec<Vec3> = (0..texels.len())
+        .filter(keep)
+        .map(|t| bake.maps.layers[k].texel_values[t])
+        .collect();
+    let texel = rel(&a, &b);
+    println!("porch at a grid direction: D worst {worst:.2e} (half a byte {:.2e}), L {radiance:.2e}, texels {texel:.2e}", 0.5 * step);
+    assert!(texel < 3e-3, "texels off by {texel}");
+}
+
+fn radbake(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// The one-line error `args` fail with.
+fn error_of(args: &[&str]) -> String {
+    let out = radbake(args);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    let e = String::from_utf8_lossy(&out.stderr).trim().to_owned();
+    assert_eq!(e.lines().count(), 1, "not one line: {e}");
+    e
+}
+
+fn exr(path: &Path) -> Vec<Vec3> {
+    read_exr_rgb(path, "page", 1 << 16, 1 << 30).unwrap().2
+}
+
+#[test]
+fn relight_writes_a_bake_folder_and_bad_input_is_named() {
+    let dir = temp_dir("live-cli");
+    let porch = scene_path("porch.gltf");
+    let p = porch.to_str().unwrap();
+    let bake = dir.join("bake");
+    let b = bake.to_str().unwrap();
+    let base = [
+        "bake",
+        p,
+        "--live",
+        "--sky",
+        "0.3,0.4,0.55",
+        "--texels-per-meter",
+        "4",
+        "--quiet",
+    ];
+    run_ok(base.iter().chain(&["-o", b]));
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(bake.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["live"]["layer"], "live");
+    assert_eq!(manifest["live"]["sky"]["layer"], "sky");
+    // The same bake on one thread: the same file, bit for bit.
+    let one = dir.join("one");
+    let out = Command::new(env!("CARGO_BIN_EXE_radbake"))
+        .args(base.iter().chain(&["-o", one.to_str().unwrap()]))
+        .env("RAYON_NUM_THREADS", "1")
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert!(
+        std::fs::read(bake.join("live.bin")).unwrap()
+            == std::fs::read(one.join("live.bin")).unwrap(),
+        "live.bin differs between 1 thread and the default"
+    );
+
+    // Relit: a bake folder; the sky doubled with the sun set is twice the sky's layer.
+    let relit = dir.join("relit");
+    let r = relit.to_str().unwrap();
+    run_ok([
+        "relight",
+        b,
+        "--sun-direction",
+        "0,-1,0",
+        "--sky",
+        "0.6,0.8,1.1",
+        "-o",
+        r,
+        "--quiet",
+    ]);
+    let sky = exr(&bake.join("lightmap_0_sky.exr"));
+    let page = exr(&relit.join("lightmap_0.exr"));
+    let (mut num, mut den) = (0.0f32, 0.0f32);
+    for (a, s) in page.iter().zip(&sky) {
+        num += (*a - *s * 2.0).abs().element_sum();
+        den += s.element_sum();
+    }
+    assert!(
+        den > 0.0 && num / den < 1e-5,
+        "relit sky off by {}",
+        num / den
+    );
+    let m: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(relit.join("manifest.json")).unwrap()).unwrap();
+    assert!(m["relit"]["iterations"].as_u64().is_some() && m.get("live").is_none());
+    let sunny = dir.join("sunny");
+    run_ok([
+        "relight",
+        b,
+        "--sun-direction",
+        "0.5,0.6,0.3",
+        "-o",
+        sunny.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let lit: f32 = exr(&sunny.join("lightmap_0.exr"))
+        .iter()
+        .map(|v| v.element_sum())
+        .sum();
+    let sky_only: f32 = sky.iter().map(|v| v.element_sum()).sum();
+    assert!(
+        lit > 1.05 * sky_only,
+        "the sun's bounce adds light: {lit} vs {sky_only}"
+    );
+
+    // Bad input: one line each, naming the cause.
+    let x = dir.join("x");
+    let x = x.to_str().unwrap();
+    let e = error_of(&["relight", b, "--sun-direction", "0,0,0", "-o", x]);
+    assert!(e.contains("zero length"), "{e}");
+    let e = error_of(&["relight", b, "--sun-direction", "nan,1,0", "-o", x]);
+    assert!(e.contains("not finite"), "{e}");
+    let broken = dir.join("broken");
+    std::fs::create_dir_all(&broken).unwrap();
+    for f in std::fs::read_dir(&bake).unwrap().flatten() {
+        std::fs::copy(f.path(), broken.join(f.file_name())).unwrap();
+    }
+    let live_bin = broken.join("live.bin");
+    let mut bytes = std::fs::read(&live_bin).unwrap();
+    let n = bytes.len();
+    bytes[n - 100] ^= 0x10;
+    std::fs::write(&live_bin, &bytes).unwrap();
+    let br = broken.to_str().unwrap();
+    let e = error_of(&["relight", br, "--sun-direction", "0,1,0", "-o", x]);
+    assert!(e.contains("live.bin") && e.contains("checksum"), "{e}");
+    std::fs::write(&live_bin, &bytes[..n / 2]).unwrap();
+    let e = error_of(&["relight", br, "--sun-direction", "0,1,0", "-o", x]);
+    assert!(e.contains("live.bin") && e.contains("truncated"), "{e}");
+    let e = error_of(&["bake", p, "--live", "--sun-path", "80,355", "-o", x]);
+    assert!(e.contains("never rises"), "{e}");
+    let cornell = scene_path("cornell_layers.gltf");
+    let c = cornell.to_str().unwrap();
+    let e = error_of(&["bake", c, "--light-mode", "bulb=live", "-o", x]);
+    assert!(
+        e.contains("bulb") && e.contains("directional lights only"),
+        "{e}"
+    );
+    let e = error_of(&["bake", c, "--live", "-o", x]);
+    assert!(e.contains("no directional light"), "{e}");
+    let e = error_of(&["relight", x, "--sun-direction", "0,1,0", "-o", r]);
+    assert!(e.contains("manifest.json"), "{e}");
+}
