@@ -21,7 +21,7 @@ enum Command {
     Bake(Box<crate::cli::bake::BakeArgs>),
     /// Recombine a bake's light layers at new weights into a bake folder, without a bake.
     Combine(crate::cli::combine::CombineArgs),
-    /// Relight a live bake for a new sun direction (and sky) into a bake folder, in milliseconds.
+    /// Relight a live bake for a new sun direction (and sky) into a bake folder, without a bake.
     Relight(crate::cli::relight::RelightArgs),
     /// Look at a baked .glb in a window (or render it offscreen with --headless).
     #[cfg(feature = "preview")]
