@@ -231,6 +231,11 @@ fn relight_writes_a_bake_folder_and_bad_input_is_named() {
     assert!(e.contains("live.bin") && e.contains("truncated"), "{e}");
     let e = error_of(&["bake", p, "--live", "--sun-path", "80,355", "-o", x]);
     assert!(e.contains("never rises"), "{e}");
+    let e = error_of(&["bake", p, "--live", "--solver", "progressive", "-o", x]);
+    assert!(
+        e.contains("live lights need a stored form-factor matrix"),
+        "{e}"
+    );
     let cornell = scene_path("cornell_layers.gltf");
     let c = cornell.to_str().unwrap();
     let e = error_of(&["bake", c, "--light-mode", "bulb=live", "-o", x]);

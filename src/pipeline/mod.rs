@@ -126,7 +126,7 @@ pub fn bake_with<'s>(
     let sky = config.load_sky()?;
     // A uniform sky in a live bake: its own layer, so its colour can change.
     let config = &live::effective_config(scene, config, &sky);
-    live::check(scene, config)?;
+    live::check(scene, config, shard)?;
     let layers = crate::scene::layers::resolve(scene, config, sky.is_black())?;
     if layers.is_some() {
         layered::check(config, shard)?;
