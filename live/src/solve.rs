@@ -59,6 +59,15 @@ pub struct Live {
     radiance: Vec<[f32; 3]>,
     /// Per patch: F L, the bounce light arriving (irradiance / π).
     indirect: Vec<[f32; 3]>,
+    /// Per texel: its four corners' bilinear weights, normalised over the
+    /// corners present (all 0: the texel takes its own patch's value).
+    weights: Vec<[f32; 4]>,
+    /// Texels by patch: patch p's are `by_patch[starts[p]..starts[p + 1]]`.
+    starts: Vec<u32>,
+    by_patch: Vec<u32>,
+    /// Per page and pixel: the texel whose value it shows (u32::MAX: none),
+    /// the padding's copies resolved to their texel.
+    sources: Vec<Vec<u32>>,
 }
 
 impl Live {
@@ -71,12 +80,19 @@ impl Live {
             .iter()
             .map(|&v| half::f16::from_bits(v).to_f32())
             .collect();
+        let weights = corner_weights(&data);
+        let (starts, by_patch) = texels_by_patch(&data);
+        let sources = pixel_sources(&data);
         Live {
             data,
             vals,
             direct: vec![[0.0; 3]; p],
             radiance: vec![[0.0; 3]; p],
             indirect: vec![[0.0; 3]; p],
+            weights,
+            starts,
+            by_patch,
+            sources,
         }
     }
 
@@ -230,58 +246,52 @@ impl Live {
     /// k × k block, as the bake computes them), shifted per patch to keep
     /// the patch's mean, clamped at 0 (the bake's first pass).
     pub fn texels(&self) -> Vec<[f32; 3]> {
-        let h = &self.data.header;
         let t = &self.data.texels;
         let values = &self.indirect;
-        let k = h.block as f32;
-        let bil: Vec<[f32; 3]> = (0..t.patch.len())
-            .into_par_iter()
-            .map(|i| {
-                let width = h.pages[t.page[i] as usize].width;
-                let (x, y) = (t.pixel[i] % width, t.pixel[i] / width);
-                let (fx, fy) = ((x as f32 + 0.5) / k - 0.5, (y as f32 + 0.5) / k - 0.5);
-                let (wx, wy) = (fx - fx.floor(), fy - fy.floor());
-                let w = [
-                    (1.0 - wx) * (1.0 - wy),
-                    wx * (1.0 - wy),
-                    (1.0 - wx) * wy,
-                    wx * wy,
-                ];
-                let (mut acc, mut wsum) = ([0.0f32; 3], 0.0f32);
-                for (&q, wt) in t.corners[i].iter().zip(w) {
-                    if q != u32::MAX {
-                        for c in 0..3 {
-                            acc[c] += values[q as usize][c] * wt;
-                        }
-                        wsum += wt;
+        let bil: Vec<[f32; 3]> = (self.weights.par_iter().zip(&t.corners))
+            .zip(&t.patch)
+            .map(|((w, c), &own)| {
+                let mut acc = [0.0f32; 3];
+                let mut any = false;
+                for (&q, &wt) in c.iter().zip(w) {
+                    if q != u32::MAX && wt > 0.0 {
+                        any = true;
+                        let v = values[q as usize];
+                        acc = [acc[0] + v[0] * wt, acc[1] + v[1] * wt, acc[2] + v[2] * wt];
                     }
                 }
-                if wsum > 0.0 {
-                    acc.map(|a| a / wsum)
+                if any {
+                    acc
                 } else {
-                    values[t.patch[i] as usize]
+                    values[own as usize]
                 }
             })
             .collect();
-        let mut mean = vec![[0.0f32; 3]; values.len()];
-        for ((b, &p), s) in bil.iter().zip(&t.patch).zip(&t.share) {
-            for c in 0..3 {
-                mean[p as usize][c] += b[c] * s;
-            }
-        }
+        // Each patch's shift: its value less its texels' area-weighted mean.
+        let shift: Vec<[f32; 3]> = (0..values.len())
+            .into_par_iter()
+            .map(|p| {
+                let ids = &self.by_patch[self.starts[p] as usize..self.starts[p + 1] as usize];
+                let mut mean = [0.0f32; 3];
+                for &i in ids {
+                    let (b, s) = (bil[i as usize], t.share[i as usize]);
+                    mean = [mean[0] + b[0] * s, mean[1] + b[1] * s, mean[2] + b[2] * s];
+                }
+                [0, 1, 2].map(|c| values[p][c] - mean[c])
+            })
+            .collect();
         bil.par_iter()
             .zip(&t.patch)
             .map(|(b, &p)| {
-                let p = p as usize;
-                [0, 1, 2].map(|c| (b[c] + values[p][c] - mean[p][c]).max(0.0))
+                let s = shift[p as usize];
+                [0, 1, 2].map(|c| (b[c] + s[c]).max(0.0))
             })
             .collect()
     }
 
     /// The live layer's pages (row-major RGB per page, irradiance / π):
-    /// each texel at its pixel, the padding rings copied ring by ring from
-    /// their neighbours (the bake's dilation, as copies), every other
-    /// pixel 0.
+    /// each texel at its pixel, the padding rings copied from their
+    /// neighbours (the bake's dilation, as copies), every other pixel 0.
     pub fn pages(&self) -> Vec<Vec<[f32; 3]>> {
         let mut pages = Vec::new();
         self.write_pages(&mut pages);
@@ -289,27 +299,99 @@ impl Live {
     }
 
     /// [`Live::pages`] into `pages`, reusing its buffers (an engine's
-    /// frame loop: no page-sized allocation per update). Pixels no texel
-    /// or padding covers keep what they hold (0 in fresh buffers).
+    /// frame loop: no page-sized allocation per update).
     pub fn write_pages(&self, pages: &mut Vec<Vec<[f32; 3]>>) {
         let texels = self.texels();
-        let h = &self.data.header;
-        pages.resize_with(h.pages.len(), Vec::new);
-        for (page, s) in pages.iter_mut().zip(&h.pages) {
-            page.resize(s.width as usize * s.height as usize, [0.0; 3]);
-        }
-        let t = &self.data.texels;
-        for ((v, &i), &page) in texels.iter().zip(&t.pixel).zip(&t.page) {
-            pages[page as usize][i as usize] = *v;
-        }
-        for ((page, list), size) in pages.iter_mut().zip(&t.padding).zip(&h.pages) {
-            let w = size.width as i64;
-            for &(i, n) in list {
-                let from = i as i64 + (n as i64 / 3 - 1) * w + (n as i64 % 3 - 1);
-                page[i as usize] = page[from as usize];
-            }
+        pages.resize_with(self.sources.len(), Vec::new);
+        for (page, src) in pages.iter_mut().zip(&self.sources) {
+            page.resize(src.len(), [0.0; 3]);
+            page.par_iter_mut().zip(src).for_each(|(px, &t)| {
+                *px = if t == u32::MAX {
+                    [0.0; 3]
+                } else {
+                    texels[t as usize]
+                };
+            });
         }
     }
+}
+
+/// Per texel, the bilinear weights of its corners (see [`Live::texels`]),
+/// normalised over the corners present; all 0 where none is.
+fn corner_weights(data: &LiveData) -> Vec<[f32; 4]> {
+    let h = &data.header;
+    let t = &data.texels;
+    let k = h.block as f32;
+    (0..t.patch.len())
+        .map(|i| {
+            let width = h.pages[t.page[i] as usize].width;
+            let (x, y) = (t.pixel[i] % width, t.pixel[i] / width);
+            // As the bake: f = (xy + ½) / k − ½, w = f − ⌊f⌋.
+            let (fx, fy) = ((x as f32 + 0.5) / k - 0.5, (y as f32 + 0.5) / k - 0.5);
+            let (wx, wy) = (fx - fx.floor(), fy - fy.floor());
+            let w = [
+                (1.0 - wx) * (1.0 - wy),
+                wx * (1.0 - wy),
+                (1.0 - wx) * wy,
+                wx * wy,
+            ];
+            let mut sum = 0.0f32;
+            for (c, wt) in t.corners[i].iter().zip(w) {
+                if *c != u32::MAX {
+                    sum += wt;
+                }
+            }
+            let mut out = [0.0f32; 4];
+            if sum > 0.0 {
+                for ((o, c), wt) in out.iter_mut().zip(&t.corners[i]).zip(w) {
+                    if *c != u32::MAX {
+                        *o = wt / sum;
+                    }
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// Texel ids grouped by patch (counting sort): (starts, ids).
+fn texels_by_patch(data: &LiveData) -> (Vec<u32>, Vec<u32>) {
+    let p = data.header.patches as usize;
+    let mut starts = vec![0u32; p + 1];
+    for &q in &data.texels.patch {
+        starts[q as usize + 1] += 1;
+    }
+    for i in 0..p {
+        starts[i + 1] += starts[i];
+    }
+    let mut next = starts.clone();
+    let mut ids = vec![0u32; data.texels.patch.len()];
+    for (t, &q) in data.texels.patch.iter().enumerate() {
+        ids[next[q as usize] as usize] = t as u32;
+        next[q as usize] += 1;
+    }
+    (starts, ids)
+}
+
+/// Per page and pixel, the texel it shows: its own, or for a padding
+/// pixel its neighbour's, resolved in ring order.
+fn pixel_sources(data: &LiveData) -> Vec<Vec<u32>> {
+    let h = &data.header;
+    let t = &data.texels;
+    let mut out: Vec<Vec<u32>> = (h.pages.iter())
+        .map(|s| vec![u32::MAX; s.width as usize * s.height as usize])
+        .collect();
+    for (texel, (&i, &page)) in t.pixel.iter().zip(&t.page).enumerate() {
+        out[page as usize][i as usize] = texel as u32;
+    }
+    for ((page, list), size) in out.iter_mut().zip(&t.padding).zip(&h.pages) {
+        let w = size.width as i64;
+        for &(i, n) in list {
+            let from = i as i64 + (n as i64 / 3 - 1) * w + (n as i64 % 3 - 1);
+            page[i as usize] = page[from as usize];
+        }
+    }
+    out
 }
 
 /// Σ|a − b| / Σ|a| (0 when a is all zero), summed in order.
