@@ -39,31 +39,37 @@ use crate::surface::Surfaces;
 use glam::Vec3;
 
 /// Settings and scene checked for a layered bake: radiosity over a stored
-/// matrix, in one job.
+/// matrix, in one job. `live`: the layers come from live lights
+/// ([`super::live`]), and the messages say so.
 ///
 /// # Errors
 /// [`Error::Config`] naming the setting that layers do not support yet.
-pub fn check(config: &BakeConfig, shard: &Sharding) -> Result<()> {
+pub fn check(config: &BakeConfig, shard: &Sharding, live: bool) -> Result<()> {
+    let (what, instead) = if live {
+        ("live lights", "or bake the light in mode `indirect`")
+    } else {
+        ("light layers", "or set layers = \"off\"")
+    };
     let refuse = |key: &str, message: &str| {
         Err(Error::Config {
             key: key.into(),
-            message: format!("{message} (or set layers = \"off\")"),
+            message: format!("{what} {message} ({instead})"),
         })
     };
     if config.method != crate::config::Method::Radiosity {
-        return refuse("method", "light layers are baked by the radiosity method");
+        return refuse("method", "are baked by the radiosity method");
     }
     if config.solver == crate::config::Solver::Progressive {
         return refuse(
             "solver",
-            "light layers need a stored form-factor matrix: use jacobi, gauss-seidel or direct",
+            "need a stored form-factor matrix: use jacobi, gauss-seidel or direct",
         );
     }
     if config.gather_nee {
-        return refuse("gather_nee", "light layers are not baked with gather_nee yet");
+        return refuse("gather_nee", "are not baked with gather_nee yet");
     }
     if !shard.is_whole() {
-        return refuse("layers", "light layers are not baked in shards yet");
+        return refuse("layers", "are not baked in shards yet");
     }
     Ok(())
 }

@@ -44,42 +44,23 @@ pub fn effective_config(scene: &Scene, config: &BakeConfig, sky: &Sky) -> BakeCo
     c
 }
 
-/// Refuses settings under which the live stage cannot run (the light
-/// layers' own, [`super::layered::check`], said for live lights).
+/// Refuses settings under which the live stage cannot run: layers off
+/// (the live lights' bounce is a layer), and the light layers' own
+/// ([`super::layered::check`], said for live lights).
 ///
 /// # Errors
-/// [`Error::Config`] for layers switched off, a method other than
-/// radiosity, progressive refinement (no stored matrix), `gather_nee` or
-/// a sharded bake.
+/// [`Error::Config`] naming the setting.
 pub fn check(scene: &Scene, config: &BakeConfig, shard: &super::shard::Sharding) -> Result<()> {
     if live_lights(scene).is_empty() {
         return Ok(());
     }
-    let refuse = |key: &str, message: &str| {
-        Err(Error::Config {
-            key: key.into(),
-            message: format!("{message} (or bake the light in mode `indirect`)"),
-        })
-    };
     if config.layers == crate::config::LayerMode::Off {
-        return refuse("layers", "live lights are baked into the light layer `live`: set layers = \"auto\"");
+        return Err(Error::Config {
+            key: "layers".into(),
+            message: "live lights are baked into the light layer `live`: set layers = \"auto\" (or bake the light in mode `indirect`)".into(),
+        });
     }
-    if config.method != crate::config::Method::Radiosity {
-        return refuse("method", "live lights are baked by the radiosity method");
-    }
-    if config.solver == Solver::Progressive {
-        return refuse(
-            "solver",
-            "live lights need a stored form-factor matrix: use jacobi, gauss-seidel or direct",
-        );
-    }
-    if config.gather_nee {
-        return refuse("gather_nee", "live lights are not baked with gather_nee yet");
-    }
-    if !shard.is_whole() {
-        return refuse("live", "live lights are not baked in shards yet");
-    }
-    Ok(())
+    super::layered::check(config, shard, true)
 }
 
 /// The live data of a bake whose scene has live lights (None without).

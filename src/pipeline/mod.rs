@@ -129,7 +129,7 @@ pub fn bake_with<'s>(
     live::check(scene, config, shard)?;
     let layers = crate::scene::layers::resolve(scene, config, sky.is_black())?;
     if layers.is_some() {
-        layered::check(config, shard)?;
+        layered::check(config, shard, false)?;
     }
     let mut log = Log::new(progress, input_warnings(scene));
 
