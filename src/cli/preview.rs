@@ -53,6 +53,21 @@ pub struct PreviewArgs {
     /// A light layer's weight, NAME=W or NAME=R,G,B (repeatable; layers not named keep 1): the lightmaps and probes shown are the layers' weighted sum (docs/layers.md).
     #[arg(long = "layer", value_name = "NAME=W", value_parser = parse_layer_weight)]
     pub layers: Vec<(String, glam::Vec3)>,
+    /// A live bake relit for a sun towards `x,y,z` (y up): the pages shown are `radbake relight`'s, the sun drawn there (docs/live.md).
+    #[arg(long, value_parser = super::parse_vec3, allow_hyphen_values = true)]
+    pub sun_direction: Option<[f32; 3]>,
+    /// With --sun-direction or --live: the sun's irradiance `r,g,b` in W/m² [default: as baked].
+    #[arg(long, value_parser = super::parse_rgb)]
+    pub sun_irradiance: Option<[f32; 3]>,
+    /// With --sun-direction or --live: the sky's radiance `r,g,b` (a live bake's uniform sky) [default: as baked].
+    #[arg(long, value_parser = super::parse_rgb)]
+    pub sky: Option<[f32; 3]>,
+    /// Draw the baked light alone: no real-time lights (modes `indirect`, `realtime`, `live`).
+    #[arg(long)]
+    pub no_realtime_lights: bool,
+    /// Window: turn a live bake's sun with the arrow keys (←/→ azimuth, ↑/↓ elevation), its bounce light re-solved live; the update time in the title.
+    #[arg(long)]
+    pub live: bool,
     /// Height (world y) of the sdf view's slice plane [default: none, under the field's box].
     #[arg(long, allow_negative_numbers = true)]
     pub sdf_slice: Option<f32>,
@@ -84,10 +99,13 @@ pub fn run(args: &PreviewArgs) -> Outcome {
             sdf_shadows: !args.no_sdf_shadows,
             dfao_reach: args.dfao_reach,
             sdf_slice: args.sdf_slice,
+            realtime_lights: !args.no_realtime_lights,
         },
         sdf: args.sdf.clone(),
         watch: args.watch,
         layers: args.layers.clone(),
+        sun: sun(args)?,
+        live: args.live,
     };
     radbake::preview::run(&opts).map_err(|e| {
         let code = match e.downcast_ref::<radbake::Error>() {
@@ -96,6 +114,31 @@ pub fn run(args: &PreviewArgs) -> Outcome {
         };
         (code, format!("{e:#}"))
     })
+}
+
+/// `--sun-direction` (or with `--live` the baked sun), `--sun-irradiance`
+/// and `--sky` as a relight; None without either flag.
+fn sun(args: &PreviewArgs) -> Result<Option<radbake::output::relight::Relight>, (u8, String)> {
+    let towards = match (args.sun_direction, args.live) {
+        (Some(d), _) => glam::Vec3::from_array(d),
+        (None, true) => radbake::preview::live::baked_direction(&args.scene)
+            .map_err(|e| (1, format!("{e:#}")))?,
+        (None, false) => {
+            if args.sun_irradiance.is_some() || args.sky.is_some() {
+                return Err((
+                    2,
+                    "--sun-irradiance and --sky relight a live bake: give --sun-direction or --live".into(),
+                ));
+            }
+            return Ok(None);
+        }
+    };
+    Ok(Some(radbake::output::relight::Relight {
+        sun_direction: towards,
+        sun_irradiance: args.sun_irradiance.map(glam::Vec3::from_array),
+        sky: args.sky.map(glam::Vec3::from_array),
+        weights: Vec::new(),
+    }))
 }
 
 /// `--layer`'s value ([`radbake::output::combine::parse_weight`]).

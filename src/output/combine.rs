@@ -237,8 +237,21 @@ pub fn recombined(
     dir: &Path,
     weights: &[(String, Vec3)],
 ) -> Result<(Vec<Lightmaps>, Option<Probes>)> {
+    recombined_replacing(dir, weights, None)
+}
+
+/// [`recombined`], with `replace`'s layer taken from its given pages (as
+/// [`combine_replacing`]): what `radbake preview --sun-direction` shows.
+///
+/// # Errors
+/// As [`combine`]'s.
+pub fn recombined_replacing(
+    dir: &Path,
+    weights: &[(String, Vec3)],
+    replace: Replacement,
+) -> Result<(Vec<Lightmaps>, Option<Probes>)> {
     let manifest = read_json(dir, "manifest.json")?;
-    let (_, pages, probes) = recombine(dir, &manifest, weights, None)?;
+    let (_, pages, probes) = recombine(dir, &manifest, weights, replace)?;
     Ok((pages, probes))
 }
 

@@ -8,8 +8,10 @@
 //! the live layer from the run time's solution. The probes keep the live
 //! lights' bounce as baked (the run time does not re-solve probes).
 
-use super::combine::{combine_replacing, read_json};
+use super::combine::{combine_replacing, read_json, recombined_replacing};
 use crate::error::{Error, Result};
+use crate::maps::lightmap::Lightmaps;
+use crate::probes::Probes;
 use glam::Vec3;
 use radbake_live::{Live, LiveData, Sun};
 use serde_json::json;
@@ -42,6 +44,12 @@ pub struct Relit {
 /// # Errors
 /// [`Error::Malformed`] for a bake without `live` or a bad `live.bin`.
 pub fn read_live(dir: &Path) -> Result<LiveData> {
+    if !dir.join("manifest.json").is_file() {
+        return Err(Error::Malformed {
+            path: dir.join("manifest.json"),
+            message: "not found: a live bake's folder has one (bake with --live)".into(),
+        });
+    }
     let manifest = read_json(dir, "manifest.json")?;
     let Some(file) = manifest["live"]["file"].as_str() else {
         return Err(Error::Malformed {
@@ -109,25 +117,13 @@ pub fn live_pages(data: LiveData, r: &Relight) -> Result<(Vec<Vec<Vec3>>, Relit)
 /// new sky for a bake whose sky has no layer of its own, or whose baked
 /// sky is 0 in a channel the new one lights.
 pub fn relight(dir: &Path, r: &Relight, out: &Path) -> Result<(Vec<PathBuf>, Relit)> {
-    let data = read_live(dir)?;
+    let (data, weights) = prepare(dir, r)?;
     let layer = data.header.layer.clone();
     let size = data.header.pages[0];
-    let mut weights = r.weights.clone();
-    if weights.iter().any(|(n, _)| *n == layer) {
-        return Err(Error::Config {
-            key: format!("layer weight `{layer}`"),
-            message: "the live layer is re-solved for the sun: give --sun-irradiance instead"
-                .into(),
-        });
-    }
-    if let Some(sky) = r.sky {
-        weights.push(sky_weight(&data, sky)?);
-    }
-    let sun = r.sun_irradiance;
     let (pages, relit) = live_pages(data, r)?;
     let note = json!({
         "sun_direction": r.sun_direction.to_array(),
-        "sun_irradiance": sun.map(|s| s.to_array()),
+        "sun_irradiance": r.sun_irradiance.map(|s| s.to_array()),
         "sky": r.sky.map(|s| s.to_array()),
         "iterations": relit.iterations,
         "residual": relit.residual,
@@ -136,6 +132,52 @@ pub fn relight(dir: &Path, r: &Relight, out: &Path) -> Result<(Vec<PathBuf>, Rel
     let replace = Some((layer.as_str(), [size.width, size.height], &pages[..]));
     let written = combine_replacing(dir, &weights, replace, out, Some(("relit", note)))?;
     Ok((written, relit))
+}
+
+/// The live bake in `dir` relit for `r`, in memory: its pages (one per
+/// [`Lightmaps`], as [`relight`] writes them) and probes. What `radbake
+/// preview --sun-direction` shows.
+///
+/// # Errors
+/// As [`relight`]'s.
+pub fn relit(dir: &Path, r: &Relight) -> Result<(Vec<Lightmaps>, Option<Probes>, Relit)> {
+    let (data, weights) = prepare(dir, r)?;
+    let layer = data.header.layer.clone();
+    let size = data.header.pages[0];
+    let (pages, relit) = live_pages(data, r)?;
+    let replace = Some((layer.as_str(), [size.width, size.height], &pages[..]));
+    let (pages, probes) = recombined_replacing(dir, &weights, replace)?;
+    Ok((pages, probes, relit))
+}
+
+/// The live data of the bake in `dir` and the other layers' weights for
+/// `r` ([`weights`]).
+fn prepare(dir: &Path, r: &Relight) -> Result<(LiveData, Vec<(String, Vec3)>)> {
+    let data = read_live(dir)?;
+    let weights = weights(&data, r)?;
+    Ok((data, weights))
+}
+
+/// The weights of the layers other than the live one for `r`: its
+/// `weights`, and the sky's where its colour changes.
+///
+/// # Errors
+/// [`Error::Config`] for a weight on the live layer, or a new sky that
+/// the bake's cannot scale to.
+pub fn weights(data: &LiveData, r: &Relight) -> Result<Vec<(String, Vec3)>> {
+    let layer = &data.header.layer;
+    let mut weights = r.weights.clone();
+    if weights.iter().any(|(n, _)| n == layer) {
+        return Err(Error::Config {
+            key: format!("layer weight `{layer}`"),
+            message: "the live layer is re-solved for the sun: give --sun-irradiance instead"
+                .into(),
+        });
+    }
+    if let Some(sky) = r.sky {
+        weights.push(sky_weight(data, sky)?);
+    }
+    Ok(weights)
 }
 
 /// The sky layer's weight for a new sky: new / baked per channel.

@@ -34,6 +34,7 @@ pub mod camera;
 pub mod field;
 pub mod gpu;
 pub mod headless;
+pub mod live;
 pub mod mips;
 pub mod model;
 pub mod options;
@@ -67,7 +68,13 @@ pub fn run(opts: &Options) -> Result<()> {
     }
     let opts = &opts;
     let t = Instant::now();
-    let mut model = Model::load_weighted(&opts.scene, &opts.layers)?;
+    if opts.live && opts.headless {
+        bail!("--live turns the sun in the window: with --headless give --sun-direction");
+    }
+    if opts.live && opts.sun.is_none() {
+        bail!("--live needs the sun to start from (live::baked_direction)");
+    }
+    let mut model = Model::load_relit(&opts.scene, &opts.layers, opts.sun.as_ref())?;
     if let Some(path) = &opts.sdf {
         model.field = Some(field::open(path)?);
     }

@@ -521,6 +521,21 @@ impl Model {
     /// As [`Model::load`]'s; and a weight naming no layer, a bake without
     /// layers, or a layer page whose size is not the `.glb`'s page's.
     pub fn load_weighted(path: &Path, weights: &[(String, Vec3)]) -> Result<Model> {
+        Self::load_relit(path, weights, None)
+    }
+
+    /// [`Model::load_weighted`], and with `sun` a live bake relit for it
+    /// (`radbake preview --sun-direction`): the pages and probes
+    /// [`crate::output::relight::relit`] gives, the layers at `weights`.
+    ///
+    /// # Errors
+    /// As [`Model::load_weighted`]'s, and [`crate::output::relight::relit`]'s
+    /// (a bake without live lights, a bad `live.bin`, a bad sun).
+    pub fn load_relit(
+        path: &Path,
+        weights: &[(String, Vec3)],
+        sun: Option<&crate::output::relight::Relight>,
+    ) -> Result<Model> {
         let scene = crate::scene::load(path, &Default::default())
             .with_context(|| format!("cannot load {}", path.display()))?;
         let (moz, pages) = match &scene.source {
@@ -551,13 +566,29 @@ impl Model {
         } else {
             None
         };
-        let linear_pages = if weights.is_empty() {
-            Vec::new()
-        } else {
-            let dir = path.parent().unwrap_or(Path::new("."));
-            let (pages, weighted) = crate::output::combine::recombined(dir, weights)?;
-            probes = weighted.or(probes);
-            linear_pages(&pages, &lightmaps)?
+        let dir = path.parent().unwrap_or(Path::new("."));
+        // The live light's new direction and irradiance, where relit.
+        let mut relit_sun = None;
+        let linear_pages = match sun {
+            Some(sun) => {
+                let sun = crate::output::relight::Relight {
+                    weights: weights.to_vec(),
+                    ..sun.clone()
+                };
+                let (pages, relit, _) = crate::output::relight::relit(dir, &sun)?;
+                probes = relit.or(probes);
+                let live = crate::output::relight::read_live(dir)?;
+                let l = &live.header.lights[0];
+                let irradiance = sun.sun_irradiance.unwrap_or(Vec3::from(l.irradiance));
+                relit_sun = Some((l.name.clone(), sun.sun_direction, irradiance));
+                linear_pages(&pages, &lightmaps)?
+            }
+            None if weights.is_empty() => Vec::new(),
+            None => {
+                let (pages, weighted) = crate::output::combine::recombined(dir, weights)?;
+                probes = weighted.or(probes);
+                linear_pages(&pages, &lightmaps)?
+            }
         };
         let (mask_textures, channels) = match &scene.source {
             Some(src) => parse_shadowmasks(&src.json, &moz, pages.len()),
@@ -572,6 +603,10 @@ impl Model {
             .iter()
             .map(|l| channels.get(&l.node_index).copied())
             .collect();
+        let mut scene = scene;
+        if let Some((name, towards, irradiance)) = relit_sun {
+            super::live::place_sun(&mut scene, &name, towards, irradiance);
+        }
         let mut model = Self::build(scene, &moz, lightmaps, probes);
         for m in &mut model.materials {
             if m.lightmap

@@ -105,6 +105,10 @@ pub struct Settings {
     /// The sdf view's slice height (world y); None: a voxel below the
     /// field's box (no slice; PageUp raises it).
     pub sdf_slice: Option<f32>,
+    /// Draw the lights an engine draws in real time (modes `indirect`,
+    /// `realtime`, `live`); off: the baked light alone (lightmaps, probes,
+    /// emission).
+    pub realtime_lights: bool,
 }
 
 impl Default for Settings {
@@ -117,6 +121,7 @@ impl Default for Settings {
             sdf_shadows: true,
             dfao_reach: DFAO_REACH,
             sdf_slice: None,
+            realtime_lights: true,
         }
     }
 }
@@ -169,6 +174,12 @@ pub struct Options {
     /// not named keep 1): the pages and probes shown are the layers'
     /// weighted sum ([`super::model::Model::load_weighted`]).
     pub layers: Vec<(String, glam::Vec3)>,
+    /// A live bake relit for this sun (`--sun-direction`, docs/live.md):
+    /// the pages shown are `radbake relight`'s.
+    pub sun: Option<crate::output::relight::Relight>,
+    /// Window: turn the live bake's sun on the arrow keys, re-solved live
+    /// ([`super::live::LiveView`]).
+    pub live: bool,
 }
 
 /// Picks the first viewpoint for `model` in an image of `aspect`.

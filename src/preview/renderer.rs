@@ -99,6 +99,9 @@ pub struct Renderer {
     double_sided: Vec<bool>,
     /// The scene's textures (kept for [`Renderer::texture_mip_levels`]).
     scene_textures: Vec<wgpu::Texture>,
+    /// The linear lightmap pages' textures, per page (None: an sRGB page),
+    /// for [`Renderer::write_linear_page`].
+    linear_pages: Vec<Option<wgpu::Texture>>,
     depth: Option<(wgpu::TextureView, u32, u32)>,
     /// The lights drawn in real time ([`PreviewLight::realtime`]).
     lights: Vec<PreviewLight>,
@@ -152,19 +155,14 @@ fn linear_texture(
     queue: &wgpu::Queue,
     label: &str,
     page: &super::model::LinearPage,
-) -> wgpu::TextureView {
-    let texels: Vec<u16> = (page.rgb.iter())
-        .flat_map(|v| [v.x, v.y, v.z, 1.0])
-        .map(|x| half::f16::from_f32(x).to_bits())
-        .collect();
-    let size = wgpu::Extent3d {
-        width: page.width,
-        height: page.height,
-        depth_or_array_layers: 1,
-    };
+) -> (wgpu::Texture, wgpu::TextureView) {
     let texture = device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
-        size,
+        size: wgpu::Extent3d {
+            width: page.width,
+            height: page.height,
+            depth_or_array_layers: 1,
+        },
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
@@ -172,9 +170,20 @@ fn linear_texture(
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
+    write_linear(queue, &texture, page);
+    let view = texture.create_view(&Default::default());
+    (texture, view)
+}
+
+/// `page` into `texture` (Rgba16Float, its size).
+fn write_linear(queue: &wgpu::Queue, texture: &wgpu::Texture, page: &super::model::LinearPage) {
+    let texels: Vec<u16> = (page.rgb.iter())
+        .flat_map(|v| [v.x, v.y, v.z, 1.0])
+        .map(|x| half::f16::from_f32(x).to_bits())
+        .collect();
     queue.write_texture(
         wgpu::TexelCopyTextureInfo {
-            texture: &texture,
+            texture,
             mip_level: 0,
             origin: wgpu::Origin3d::ZERO,
             aspect: wgpu::TextureAspect::All,
@@ -185,9 +194,8 @@ fn linear_texture(
             bytes_per_row: Some(8 * page.width),
             rows_per_image: Some(page.height),
         },
-        size,
+        texture.size(),
     );
-    texture.create_view(&Default::default())
 }
 
 /// An RGBA8 texture, sRGB-decoded on sampling or not (data maps), with
@@ -348,6 +356,7 @@ impl Renderer {
         let mut textures = Textures::upload(device, queue, model);
         let material_groups = material_groups(device, &material_layout, model, &textures);
         let scene_textures = std::mem::take(&mut textures.textures);
+        let linear_pages = std::mem::take(&mut textures.linear);
         let vertices = (!model.vertices.is_empty()).then(|| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vertices"),
@@ -382,11 +391,29 @@ impl Renderer {
             material_groups,
             double_sided: model.materials.iter().map(|m| m.double_sided).collect(),
             scene_textures,
+            linear_pages,
             depth: None,
             size: (1, 1),
             camera,
             settings,
         }
+    }
+
+    /// Replaces linear lightmap page `index` with `page` (its size); false
+    /// where the page is not a linear one of that size (nothing written).
+    pub fn write_linear_page(&self, index: usize, page: &super::model::LinearPage) -> bool {
+        match self.linear_pages.get(index) {
+            Some(Some(t)) if (t.width(), t.height()) == (page.width, page.height) => {
+                write_linear(&self.queue, t, page);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// The real-time lights again from `scene` (a live sun moved).
+    pub fn set_lights(&mut self, scene: &crate::scene::Scene, channels: &[Option<u8>]) {
+        self.lights = realtime_lights(scene, channels);
     }
 
     /// The mip level count of each of the scene's textures
@@ -533,7 +560,11 @@ impl Renderer {
             bicubic: s.bicubic as u32,
             tone_map: s.tone_map as u32,
             viewport: [w as f32, h as f32],
-            light_count: self.lights.len() as u32,
+            light_count: if self.settings.realtime_lights {
+                self.lights.len() as u32
+            } else {
+                0
+            },
             _pad: 0.0,
             inv_view_proj: view_proj.inverse().to_cols_array_2d(),
             sdf_min: lo.extend(voxel).to_array(),
@@ -921,8 +952,11 @@ struct Textures {
     textures: Vec<wgpu::Texture>,
     /// Their views and samplers.
     scene: Vec<(wgpu::TextureView, wgpu::Sampler)>,
-    /// The lightmap pages (sRGB PNG).
+    /// The lightmap pages (sRGB PNG, or linear where the model has
+    /// [`Model::linear_pages`]).
     lightmaps: Vec<wgpu::TextureView>,
+    /// The linear pages' textures (None: an sRGB page).
+    linear: Vec<Option<wgpu::Texture>>,
     /// A transparent texel for "no debug map".
     no_debug: wgpu::TextureView,
     /// Debug maps (patches, validity; not colour data) per page.
@@ -948,20 +982,28 @@ impl Textures {
                 (view, texture_sampler(device, t))
             })
             .collect();
+        let mut linear_pages = Vec::new();
         let lightmaps: Vec<wgpu::TextureView> = model
             .lightmaps
             .iter()
             .enumerate()
             .map(|(i, l)| match model.linear_pages.get(i) {
-                Some(Some(page)) => linear_texture(device, queue, &format!("lightmap{i}"), page),
-                _ => srgb_texture(
-                    device,
-                    queue,
-                    &format!("lightmap{i}"),
-                    l.width,
-                    l.height,
-                    &l.rgba,
-                ),
+                Some(Some(page)) => {
+                    let (t, v) = linear_texture(device, queue, &format!("lightmap{i}"), page);
+                    linear_pages.push(Some(t));
+                    v
+                }
+                _ => {
+                    linear_pages.push(None);
+                    srgb_texture(
+                        device,
+                        queue,
+                        &format!("lightmap{i}"),
+                        l.width,
+                        l.height,
+                        &l.rgba,
+                    )
+                }
             })
             .collect();
         // Debug maps (patches, validity; not colour data), and a
@@ -1011,6 +1053,7 @@ impl Textures {
             textures,
             scene,
             lightmaps,
+            linear: linear_pages,
             no_debug,
             debug,
             shadowmasks,

@@ -3,6 +3,7 @@
 
 use super::camera::{Camera, Mode};
 use super::headless::write_png;
+use super::live::LiveView;
 use super::model::Model;
 use super::options::{initial_camera, Options, ToneMap, ViewMode};
 use super::renderer::Renderer;
@@ -26,7 +27,8 @@ Tab: orbit <-> fly camera    W A S D: move (fly), Q/E: down/up, Shift: faster
 1 lit  2 lightmap  3 albedo  4 texel checker  5 chart borders  6 patches  7 invalid texels  8 probes  9 distance field
 B: bilinear/bicubic lightmap   T: tone map ACES/none   +/-: exposure   0: exposure 0
 PageUp/PageDown: move the distance field's slice (Shift: 10 voxels)   G: distance-field shadows on/off
-F: reset camera   P: screenshot (preview_<n>.png)   H: help   Esc: quit";
+F: reset camera   P: screenshot (preview_<n>.png)   H: help   Esc: quit
+--live: Left/Right: the sun's azimuth, Up/Down: its elevation (Shift: faster)";
 
 struct State {
     window: Arc<Window>,
@@ -54,6 +56,8 @@ struct App {
     /// `--watch`: the bake being followed, and when it was last looked at.
     watch: Option<Watch>,
     watched: Instant,
+    /// `--live`: the live bake whose sun the arrow keys turn.
+    live: Option<LiveView>,
 }
 
 impl App {
@@ -125,8 +129,14 @@ impl App {
             return "radbake preview".into();
         };
         let st = &s.renderer.settings;
+        let sun = self.live.as_ref().map_or(String::new(), |l| {
+            format!(
+                " | sun {:.1}° up, {:.1}° round: {:.1} ms ({} it.)",
+                l.elevation, l.azimuth, l.update_ms, l.iterations
+            )
+        });
         format!(
-            "radbake preview — {} | {} | {} | EV {:+.1} | {} | {:.0} fps | H: help",
+            "radbake preview — {} | {} | {} | EV {:+.1} | {} | {:.0} fps{sun} | H: help",
             st.view.name(),
             if st.bicubic { "bicubic" } else { "bilinear" },
             match st.tone_map {
@@ -140,6 +150,26 @@ impl App {
             },
             self.fps
         )
+    }
+
+    /// `--live`: turns the sun while an arrow key is held, and re-solves.
+    fn turn_sun(&mut self, dt: f32) -> Result<()> {
+        let (Some(live), Some(s)) = (&mut self.live, &mut self.state) else {
+            return Ok(());
+        };
+        let held = |k| self.keys.contains(&k) as i32 as f32;
+        let fast =
+            self.keys.contains(&KeyCode::ShiftLeft) || self.keys.contains(&KeyCode::ShiftRight);
+        let rate = if fast { 60.0 } else { 15.0 } * dt;
+        let (de, da) = (
+            held(KeyCode::ArrowUp) - held(KeyCode::ArrowDown),
+            held(KeyCode::ArrowRight) - held(KeyCode::ArrowLeft),
+        );
+        if de == 0.0 && da == 0.0 {
+            return Ok(());
+        }
+        live.turn(de * rate, da * rate);
+        live.update(&mut self.model, &mut s.renderer)
     }
 
     fn key(&mut self, code: KeyCode, event_loop: &ActiveEventLoop) -> Result<()> {
@@ -258,6 +288,7 @@ impl App {
         let now = Instant::now();
         let dt = (now - self.last_frame).as_secs_f32().min(0.1);
         self.last_frame = now;
+        self.turn_sun(dt)?;
         let Some(s) = &mut self.state else {
             return Ok(());
         };
@@ -432,6 +463,15 @@ impl ApplicationHandler for App {
 /// Opens the window and runs until it is closed (or `opts.frames` are drawn).
 pub fn run(model: Model, opts: &Options, watch: Option<Watch>) -> Result<()> {
     let start_camera = initial_camera(&model, &opts.viewpoint)?;
+    let live = if opts.live {
+        Some(LiveView::open(
+            &opts.scene,
+            &opts.layers,
+            opts.sun.as_ref(),
+        )?)
+    } else {
+        None
+    };
     let event_loop = EventLoop::new().map_err(|e| {
         anyhow!("cannot open a window ({e}); is there a display (DISPLAY/WAYLAND_DISPLAY)? Use --headless to render offscreen")
     })?;
@@ -452,6 +492,7 @@ pub fn run(model: Model, opts: &Options, watch: Option<Watch>) -> Result<()> {
         screenshots: 0,
         watch,
         watched: Instant::now(),
+        live,
     };
     event_loop.run_app(&mut app).context("window event loop")?;
     match app.error {

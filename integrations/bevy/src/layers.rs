@@ -21,11 +21,13 @@
 //! or not finite, is refused: nothing changes, the bake entity gets a
 //! [`RadbakeLayersError`] with a one-line reason, and it is logged.
 
-use crate::{RadbakeApplied, RadbakeBake, RadbakeManifest};
+use crate::live::{moved, LiveJob, Solved};
+use crate::{RadbakeApplied, RadbakeBake, RadbakeLiveApplied, RadbakeManifest};
 use bevy::gltf::GltfMaterialName;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::tasks::{block_on, poll_once, AsyncComputeTaskPool, Task};
+use radbake_live::Sun;
 use std::sync::Arc;
 
 /// One light layer of a bake (`manifest.json`'s `layers`).
@@ -99,6 +101,8 @@ struct Recombined {
     pages: Vec<Image>,
     volumes: Vec<Image>,
     task_ms: f32,
+    /// A live bake's solve (its live layer's pages replaced).
+    live: Option<Solved>,
 }
 
 /// A bake's recombination state.
@@ -112,12 +116,19 @@ pub(crate) struct LayerJob {
     emission: HashMap<AssetId<StandardMaterial>, (usize, LinearRgba)>,
     /// Base intensity and colour of each layered light entity, and its layer.
     lights: HashMap<Entity, (usize, f32, LinearRgba)>,
+    /// A live bake's run time ([`crate::live`]).
+    live: Option<LiveJob>,
 }
 
 /// Checks `weights` against the bake's layers: every name is a layer, every
 /// weight finite and ≥ 0.
-fn check(weights: &RadbakeLayers, layers: &[Layer]) -> Result<(), String> {
+fn check(weights: &RadbakeLayers, layers: &[Layer], live: Option<&str>) -> Result<(), String> {
     for (name, w) in &weights.weights {
+        if Some(name.as_str()) == live {
+            return Err(format!(
+                "radbake: layer `{name}` is the live sun's, re-solved as its light turns: change the light's colour or illuminance instead"
+            ));
+        }
         if !layers.iter().any(|l| &l.name == name) {
             let names: Vec<&str> = layers.iter().map(|l| l.name.as_str()).collect();
             return Err(format!(
@@ -190,15 +201,24 @@ fn sources(manifest: &RadbakeManifest, images: &Assets<Image>) -> Option<Result<
     Some(Ok(Sources { pages, volumes }))
 }
 
-/// Σₖ wₖ × layer k into a copy of `template`, RGB9E5.
-fn weighted(template: &Image, per_layer: &[Vec<Vec3>], w: &[Vec3]) -> Image {
+/// Σₖ wₖ × layer k into a copy of `template`, RGB9E5; with `live`, layer
+/// `live.0`'s texels are `live.1` (weight 1).
+fn weighted(
+    template: &Image,
+    per_layer: &[Vec<Vec3>],
+    w: &[Vec3],
+    live: Option<(usize, &[[f32; 3]])>,
+) -> Image {
     let n = per_layer.first().map_or(0, Vec::len);
     let mut data = Vec::with_capacity(4 * n);
     for i in 0..n {
-        let v = per_layer
-            .iter()
-            .zip(w)
-            .fold(Vec3::ZERO, |acc, (l, w)| acc + l[i] * *w);
+        let mut v = Vec3::ZERO;
+        for (k, (l, w)) in per_layer.iter().zip(w).enumerate() {
+            v += match live {
+                Some((lk, page)) if lk == k => Vec3::from(page[i]),
+                _ => l[i] * *w,
+            };
+        }
         data.extend_from_slice(&rgb_to_rgb9e5(v).to_le_bytes());
     }
     let mut image = template.clone();
@@ -207,7 +227,8 @@ fn weighted(template: &Image, per_layer: &[Vec<Vec3>], w: &[Vec3]) -> Image {
 }
 
 /// Starts a recombination for every applied bake whose [`RadbakeLayers`]
-/// changed (or changed while one ran), and applies those that finished.
+/// changed (or changed while one ran), or whose live sun moved
+/// ([`crate::live`]), and applies those that finished.
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub(crate) fn recombine_layers(
     mut commands: Commands,
@@ -215,7 +236,7 @@ pub(crate) fn recombine_layers(
         (
             Entity,
             &RadbakeBake,
-            Ref<RadbakeLayers>,
+            Option<Ref<RadbakeLayers>>,
             Option<&mut LayerJob>,
         ),
         With<RadbakeApplied>,
@@ -227,26 +248,55 @@ pub(crate) fn recombine_layers(
         Query<&mut PointLight>,
         Query<&mut SpotLight>,
         Query<&mut DirectionalLight>,
+        Query<(&DirectionalLight, &GlobalTransform)>,
     )>,
     tagged: (
         Query<&Children>,
         Query<(&GltfMaterialName, &MeshMaterial3d<StandardMaterial>)>,
     ),
     names: (Query<&ChildOf>, Query<&Name>),
-    applied: Query<&RadbakeLayersApplied>,
+    applied: (Query<&RadbakeLayersApplied>, Query<&RadbakeLiveApplied>),
 ) {
+    let as_baked = RadbakeLayers::default();
     for (root, bake, weights, job) in &mut bakes {
         let Some(manifest) = manifests.get(&bake.manifest) else {
             continue;
         };
+        // Weights to apply, or a live sun to follow (its other layers as
+        // baked where no weights are given).
+        if weights.is_none() && manifest.live.is_none() {
+            continue;
+        }
+        let changed = weights.as_ref().is_some_and(|w| w.is_changed());
+        let weights: &RadbakeLayers = weights.as_deref().unwrap_or(&as_baked);
         let Some(mut job) = job else {
             commands.entity(root).insert(LayerJob {
                 stale: true,
+                live: manifest.live.as_ref().map(|d| {
+                    let k = manifest
+                        .layers
+                        .iter()
+                        .position(|l| l.name == d.header.layer);
+                    LiveJob::new(d, k.unwrap_or(usize::MAX))
+                }),
                 ..default()
             });
             continue;
         };
-        if weights.is_changed() {
+        if changed {
+            job.stale = true;
+        }
+        let sun = job.live.as_mut().and_then(|live| {
+            let layer = manifest.layers.get(live.layer)?;
+            let sun = live.sun_now(
+                root,
+                &layer.lights,
+                (&tagged.0, &names.0, &names.1),
+                &lights.p3(),
+            )?;
+            Some((sun, live.solved.is_none_or(|s| moved(&sun, &s))))
+        });
+        if sun.is_some_and(|(_, m)| m) {
             job.stale = true;
         }
         if let Some(task) = job.task.as_mut() {
@@ -254,34 +304,27 @@ pub(crate) fn recombine_layers(
                 continue;
             };
             job.task = None;
-            for (h, image) in manifest.pages.iter().zip(done.pages) {
-                let _ = images.insert(h.id(), image);
-            }
-            for (v, image) in manifest.volumes.iter().zip(done.volumes) {
-                let _ = images.insert(v.voxels.id(), image);
+            let w = done.weights.clone();
+            let ctx = (&mut commands, root, &applied);
+            if !finish(&mut job, done, manifest, ctx, &mut images) {
+                continue;
             }
             weigh_lights(
                 &mut job,
                 manifest,
-                &done.weights,
+                &w,
                 root,
                 &mut lights,
                 &tagged,
                 &names,
                 &mut materials,
             );
-            let generation = applied.get(root).map_or(0, |a| a.generation) + 1;
-            commands.entity(root).insert(RadbakeLayersApplied {
-                weights: done.weights,
-                generation,
-                task_ms: done.task_ms,
-            });
-            commands.entity(root).remove::<RadbakeLayersError>();
         }
         if !job.stale || job.task.is_some() {
             continue;
         }
-        if let Err(e) = check(&weights, &manifest.layers) {
+        let live_layer = manifest.live.as_ref().map(|d| d.header.layer.as_str());
+        if let Err(e) = check(weights, &manifest.layers, live_layer) {
             error!("{e}");
             commands.entity(root).insert(RadbakeLayersError(e));
             job.stale = false;
@@ -299,39 +342,131 @@ pub(crate) fn recombine_layers(
                 }
             }
         }
-        let sources = job.sources.clone().unwrap();
-        let w: Vec<Vec3> = manifest
-            .layers
-            .iter()
-            .map(|l| weights.weight(&l.name))
-            .collect();
-        let weights = RadbakeLayers::clone(&weights);
-        job.stale = false;
-        job.task = Some(AsyncComputeTaskPool::get().spawn(async move {
-            let t = std::time::Instant::now();
-            let pages = sources
-                .pages
-                .iter()
-                .map(|(t, l)| weighted(t, l, &w))
-                .collect();
-            let volumes = sources
-                .volumes
-                .iter()
-                .map(|(t, l)| weighted(t, l, &w))
-                .collect();
-            Recombined {
-                weights,
-                pages,
-                volumes,
-                task_ms: t.elapsed().as_secs_f32() * 1e3,
-            }
-        }));
+        start(&mut job, manifest, weights, sun.map(|(s, _)| s));
     }
+}
+
+/// Applies a finished recombination: the new pages and volumes into the
+/// bake's image assets, [`RadbakeLayersApplied`] (and
+/// [`RadbakeLiveApplied`]) on the bake entity. False where the live solve
+/// failed (nothing applied; [`RadbakeLayersError`] says why).
+fn finish(
+    job: &mut LayerJob,
+    done: Recombined,
+    manifest: &RadbakeManifest,
+    (commands, root, applied): (
+        &mut Commands,
+        Entity,
+        &(Query<&RadbakeLayersApplied>, Query<&RadbakeLiveApplied>),
+    ),
+    images: &mut Assets<Image>,
+) -> bool {
+    if let Some(solved) = done.live {
+        let live = job
+            .live
+            .as_mut()
+            .expect("a live solve comes from a live job");
+        live.solver = Some(solved.solver);
+        live.pages = solved.pages;
+        match solved.result {
+            Ok(solve) => {
+                live.solved = Some(solved.sun);
+                let generation = applied.1.get(root).map_or(0, |a| a.generation) + 1;
+                commands.entity(root).insert(RadbakeLiveApplied {
+                    direction: Vec3::from(solved.sun.direction).normalize(),
+                    irradiance: Vec3::from(solved.sun.irradiance),
+                    iterations: solve.iterations,
+                    residual: solve.residual,
+                    solve_ms: solved.ms,
+                    generation,
+                });
+            }
+            Err(e) => {
+                // Solved as far as it goes: not again until the sun moves.
+                live.solved = Some(solved.sun);
+                error!("{e}");
+                commands.entity(root).insert(RadbakeLayersError(e));
+                return false;
+            }
+        }
+    }
+    for (h, image) in manifest.pages.iter().zip(done.pages) {
+        let _ = images.insert(h.id(), image);
+    }
+    for (v, image) in manifest.volumes.iter().zip(done.volumes) {
+        let _ = images.insert(v.voxels.id(), image);
+    }
+    let generation = applied.0.get(root).map_or(0, |a| a.generation) + 1;
+    commands.entity(root).insert(RadbakeLayersApplied {
+        weights: done.weights,
+        generation,
+        task_ms: done.task_ms,
+    });
+    commands.entity(root).remove::<RadbakeLayersError>();
+    true
+}
+
+/// Starts the recombination task at `weights` (and, for a live bake, the
+/// solve for `sun`).
+fn start(
+    job: &mut LayerJob,
+    manifest: &RadbakeManifest,
+    weights: &RadbakeLayers,
+    sun: Option<Sun>,
+) {
+    let sources = job.sources.clone().expect("sources are decoded first");
+    let w: Vec<Vec3> = manifest
+        .layers
+        .iter()
+        .map(|l| weights.weight(&l.name))
+        .collect();
+    let weights = RadbakeLayers::clone(weights);
+    job.stale = false;
+    // A live bake: its solver and sun go to the task (the first
+    // recombination waits for the light to be found).
+    let live = match (job.live.as_mut(), sun) {
+        (Some(live), Some(sun)) => match live.solver.take() {
+            Some(solver) => {
+                live.solved = Some(sun);
+                Some((solver, sun, std::mem::take(&mut live.pages), live.layer))
+            }
+            None => return,
+        },
+        (Some(_), None) => {
+            job.stale = true;
+            return;
+        }
+        (None, _) => None,
+    };
+    job.task = Some(AsyncComputeTaskPool::get().spawn(async move {
+        let t = std::time::Instant::now();
+        let solved =
+            live.map(|(solver, sun, pages, k)| (crate::live::solve(solver, sun, pages), k));
+        let replaced = |page: usize| match &solved {
+            Some((s, k)) if s.result.is_ok() => s.pages.get(page).map(|p| (*k, &p[..])),
+            _ => None,
+        };
+        let pages = (sources.pages.iter().enumerate())
+            .map(|(i, (t, l))| weighted(t, l, &w, replaced(i)))
+            .collect();
+        let volumes = sources
+            .volumes
+            .iter()
+            .map(|(t, l)| weighted(t, l, &w, None))
+            .collect();
+        Recombined {
+            weights,
+            pages,
+            volumes,
+            task_ms: t.elapsed().as_secs_f32() * 1e3,
+            live: solved.map(|(s, _)| s),
+        }
+    }));
 }
 
 /// The lights and emissive materials of each layer at `weights` (see the
 /// module documentation); their baked values recorded the first time.
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn weigh_lights(
     job: &mut LayerJob,
     manifest: &RadbakeManifest,
@@ -341,6 +476,7 @@ fn weigh_lights(
         Query<&mut PointLight>,
         Query<&mut SpotLight>,
         Query<&mut DirectionalLight>,
+        Query<(&DirectionalLight, &GlobalTransform)>,
     )>,
     (children, tagged): &(
         Query<&Children>,
@@ -349,11 +485,13 @@ fn weigh_lights(
     (parents, names): &(Query<&ChildOf>, Query<&Name>),
     materials: &mut Assets<StandardMaterial>,
 ) {
+    // The live layer's light is the user's to turn and dim: not weighed.
+    let live = manifest.live.as_ref().map(|d| d.header.layer.as_str());
     let layer_of_light = |name: &str| {
         manifest
             .layers
             .iter()
-            .position(|l| l.lights.iter().any(|n| n == name))
+            .position(|l| Some(l.name.as_str()) != live && l.lights.iter().any(|n| n == name))
     };
     let layer_of_material = |name: &str| {
         manifest
@@ -494,9 +632,9 @@ mod tests {
             volumes: vec![],
         }];
         let ok = RadbakeLayers::default().with("lamp", Vec3::splat(2.0));
-        assert!(check(&ok, &layers).is_ok());
+        assert!(check(&ok, &layers, None).is_ok());
         let unknown = RadbakeLayers::default().with("lantern", Vec3::ONE);
-        assert!(check(&unknown, &layers)
+        assert!(check(&unknown, &layers, None)
             .unwrap_err()
             .contains("no layer `lantern`"));
         for bad in [
@@ -505,7 +643,14 @@ mod tests {
             Vec3::splat(f32::INFINITY),
         ] {
             let w = RadbakeLayers::default().with("lamp", bad);
-            assert!(check(&w, &layers).unwrap_err().contains("finite and ≥ 0"));
+            assert!(check(&w, &layers, None)
+                .unwrap_err()
+                .contains("finite and ≥ 0"));
         }
+        // The live layer is re-solved, not weighed.
+        let live = RadbakeLayers::default().with("lamp", Vec3::ONE);
+        assert!(check(&live, &layers, Some("lamp"))
+            .unwrap_err()
+            .contains("live sun's"));
     }
 }

@@ -59,7 +59,9 @@ use bevy::world_serialization::WorldAssetRoot;
 use serde::Deserialize;
 
 pub mod layers;
+pub mod live;
 pub use layers::{Layer, RadbakeLayers, RadbakeLayersApplied, RadbakeLayersError};
+pub use live::RadbakeLiveApplied;
 
 /// The factor that makes a default Bevy camera (`Exposure::BLENDER`, ev100
 /// 9.7) show a radbake bake at the preview's EV 0: 1.2 × 2^9.7.
@@ -159,6 +161,9 @@ pub struct RadbakeManifest {
     /// The bake's light layers (empty for a bake without layers): what a
     /// [`RadbakeLayers`] weighs.
     pub layers: Vec<Layer>,
+    /// A live bake's run-time data (`live.bin`, read at load): the live
+    /// sun's bounce light is re-solved when its light turns ([`live`]).
+    pub live: Option<std::sync::Arc<radbake_live::LiveData>>,
 }
 
 /// One baked node instance.
@@ -197,6 +202,12 @@ struct ManifestFile {
     probes: Option<ProbesFile>,
     #[serde(default)]
     layers: Vec<LayerFile>,
+    live: Option<LiveFile>,
+}
+
+#[derive(Deserialize)]
+struct LiveFile {
+    file: String,
 }
 
 #[derive(Deserialize)]
@@ -348,12 +359,32 @@ impl AssetLoader for ManifestLoader {
                 volumes: layer_volumes,
             });
         }
+        let live = match file.live {
+            Some(l) => {
+                let at = relative(&l.file)?;
+                let bytes = load_context
+                    .read_asset_bytes(at.clone())
+                    .await
+                    .map_err(|e| fail(format!("cannot read {at}: {e}")))?;
+                let data = radbake_live::LiveData::from_bytes(&bytes)
+                    .map_err(|e| fail(format!("{at}: {e}")))?;
+                let layer = &data.header.layer;
+                if !layers.iter().any(|l| &l.name == layer) {
+                    return Err(fail(format!(
+                        "{at}: its layer `{layer}` is not among the bake's layers"
+                    )));
+                }
+                Some(std::sync::Arc::new(data))
+            }
+            None => None,
+        };
         Ok(RadbakeManifest {
             gltf,
             pages,
             instances: file.instances,
             volumes,
             layers,
+            live,
         })
     }
 
@@ -586,16 +617,19 @@ fn baked_lights(
         if let Ok(mut l) = lights.p0().get_mut(e) {
             l.affects_lightmapped_mesh_diffuse = engine;
             l.intensity *= exposure;
+            l.color = gltf_light_colour(l.color);
             found = true;
         }
         if let Ok(mut l) = lights.p1().get_mut(e) {
             l.affects_lightmapped_mesh_diffuse = engine;
             l.intensity *= exposure;
+            l.color = gltf_light_colour(l.color);
             found = true;
         }
         if let Ok(mut l) = lights.p2().get_mut(e) {
             l.affects_lightmapped_mesh_diffuse = engine;
             l.illuminance *= exposure;
+            l.color = gltf_light_colour(l.color);
             found = true;
         }
         match (found, engine) {
@@ -605,6 +639,15 @@ fn baked_lights(
         }
     }
     (baked, live)
+}
+
+/// A glTF light's colour as `KHR_lights_punctual` defines it: linear RGB.
+/// Bevy 0.19's glTF loader reads it as sRGB (`Color::srgb_from_array`,
+/// `bevy_gltf` `loader/mod.rs`), which darkens and tints a coloured light
+/// against the bake; its sRGB components are the glTF's numbers.
+fn gltf_light_colour(c: Color) -> Color {
+    let s = c.to_srgba();
+    Color::linear_rgb(s.red, s.green, s.blue)
 }
 
 #[cfg(test)]
