@@ -495,3 +495,255 @@ fn stock_hubs_semantics_fail_as_documented() {
         "{mean_pred}, {p95}"
     );
 }
+
+/// The porch (`scenes/porch.gltf`) with a glTF camera `cam` looking under
+/// its roof from the open side, baked as tests/live.rs bakes it (4
+/// texels/m) with its sun live and the sky 0.3, 0.4, 0.55 in a layer of
+/// its own. Returns the bake folder.
+fn live_porch(name: &str) -> std::path::PathBuf {
+    let src = temp_dir(&format!("{name}-src"));
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(scene_path("porch.gltf")).unwrap()).unwrap();
+    doc["cameras"] = serde_json::json!([{"name": "cam", "type": "perspective", "perspective": {"yfov": 0.9, "znear": 0.05, "zfar": 60.0}}]);
+    let look = glam::Quat::from_rotation_x(-0.14);
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    nodes.push(serde_json::json!({"name": "cam", "camera": 0, "translation": [1.5, 2.6, 11.0], "rotation": look.to_array()}));
+    let n = nodes.len();
+    doc["scenes"][0]["nodes"] = serde_json::json!((0..n).collect::<Vec<_>>());
+    let gltf = src.join("porch.gltf");
+    std::fs::write(&gltf, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let out = temp_dir(name);
+    common::run_ok([
+        "bake",
+        gltf.to_str().unwrap(),
+        "--live",
+        "--sky",
+        "0.3,0.4,0.55",
+        "--texels-per-meter",
+        "4",
+        "--out",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    out
+}
+
+/// The live bake's sun as baked, and a sun `degrees` away from it at the
+/// same elevation (turned about y: a later hour), as `x,y,z`.
+fn turned_sun(bake: &Path, degrees: f32) -> (Vec3, String) {
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(bake.join("manifest.json")).unwrap()).unwrap();
+    let d = &manifest["live"]["lights"][0]["direction"];
+    let baked = Vec3::new(
+        d[0].as_f64().unwrap() as f32,
+        d[1].as_f64().unwrap() as f32,
+        d[2].as_f64().unwrap() as f32,
+    )
+    .normalize();
+    // cos θ = y² + (1 − y²) cos φ for a turn φ about y.
+    let y2 = baked.y * baked.y;
+    let phi = ((degrees.to_radians().cos() - y2) / (1.0 - y2)).acos();
+    let sun = glam::Quat::from_rotation_y(phi) * baked;
+    let angle = baked.dot(sun).clamp(-1.0, 1.0).acos().to_degrees();
+    assert!((angle - degrees).abs() < 0.01, "{angle}°");
+    (sun, format!("{},{},{}", sun.x, sun.y, sun.z))
+}
+
+/// The three.js live runtime (web/radbake-live.js through
+/// radbake-three.js's loadRadbakeLive, in headless Chromium, warm-started
+/// from the baked sun) and `radbake relight` (the Rust run time, from
+/// zero) at a sun 30° from the baked one and a new sky: lightmap page 0
+/// with every layer, the JS page before its half-float conversion, within
+/// 1e-3 of the relit page's sum (Σ|Δ| / Σ|relight|) and every pixel
+/// within 1 % of the page's mean. Both solves stop at the bake's
+/// tolerance (1e-4 relative change) from different starts; they agree to
+/// a few 1e-5.
+#[test]
+#[ignore = "needs tests/web/node_modules and Chromium (CI runs it)"]
+fn three_js_live_runtime_matches_relight() {
+    let bake = live_porch("web-live-numeric");
+    let (_, sun) = turned_sun(&bake, 30.0);
+    let sky = "0.6,0.5,0.4";
+    let relit = temp_dir("web-live-relit");
+    common::run_ok([
+        "relight",
+        bake.to_str().unwrap(),
+        "--sun-direction",
+        &sun,
+        "--sky",
+        sky,
+        "-o",
+        relit.to_str().unwrap(),
+        "-q",
+    ]);
+    let server = serve(&bake);
+    let web = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web");
+    let dump = bake.join("three_live_page.f32");
+    let run = Command::new("node")
+        .arg(web.join("live_check.mjs"))
+        .arg(format!("http://127.0.0.1:{}", server.port))
+        .args([&sun, sky])
+        .arg(&dump)
+        .output()
+        .unwrap();
+    succeeded(&run);
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["errors"], serde_json::json!([]), "{report}");
+    assert_eq!(report["light"], "sun");
+    let (w, h, ours) =
+        radbake::util::files::read_exr_rgb(&relit.join("lightmap_0.exr"), "page", 1 << 16, 1 << 30)
+            .unwrap();
+    assert_eq!(
+        (report["width"].as_u64(), report["height"].as_u64()),
+        (Some(w as u64), Some(h as u64))
+    );
+    let bytes = std::fs::read(&dump).unwrap();
+    let three: Vec<Vec3> = bytes
+        .chunks_exact(12)
+        .map(|c| {
+            let f = |i: usize| f32::from_le_bytes(c[i..i + 4].try_into().unwrap());
+            Vec3::new(f(0), f(4), f(8))
+        })
+        .collect();
+    assert_eq!(three.len(), ours.len());
+    // The pixels the page holds (texels and their padding): lit in either.
+    let held: Vec<(Vec3, Vec3)> = three
+        .iter()
+        .zip(&ours)
+        .filter(|(a, b)| a.max_element() > 0.0 || b.max_element() > 0.0)
+        .map(|(a, b)| (*a, *b))
+        .collect();
+    assert!(held.len() > ours.len() / 4, "{} pixels held", held.len());
+    let sum: f32 = held.iter().map(|(_, b)| b.element_sum()).sum();
+    let diff: f32 = held
+        .iter()
+        .map(|(a, b)| (*a - *b).abs().element_sum())
+        .sum();
+    let worst = held
+        .iter()
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .fold(0.0f32, f32::max);
+    let mean = sum / (3 * held.len()) as f32;
+    eprintln!(
+        "three.js live / relight at a sun 30° away: Σ|Δ| / Σ|relight| {:.2e} over {} pixels, worst {:.2e} of the mean {mean:.4} ({} iterations from the baked sun, residual {:.2e}, {:.1} ms)",
+        diff / sum,
+        held.len(),
+        worst / mean,
+        report["iterations"],
+        report["residual"].as_f64().unwrap(),
+        report["ms"].as_f64().unwrap()
+    );
+    assert!(diff / sum <= 1e-3, "Σ|Δ| / Σ|relight| {}", diff / sum);
+    assert!(worst <= 1e-2 * mean, "worst {worst} of the mean {mean}");
+}
+
+/// The viewer page with `sun=` (and `sky=`, `sun_irradiance=`) solves a
+/// live bake in three.js and renders what `radbake preview
+/// --sun-direction` does (relight's pages) from the porch's camera, in
+/// the lightmap view (the sun's direct light is the engine's: the
+/// viewer draws none), no tone mapping: mean linear radiance within 3 %,
+/// 95th-percentile per-pixel difference within 5 %; `window.radbake.live`
+/// reports the light and the solve.
+#[test]
+#[ignore = "needs tests/web/node_modules and Chromium (CI runs it)"]
+fn viewer_live_sun_matches_the_preview() {
+    let out = live_porch("web-live");
+    let glb = out.join("porch.baked.glb");
+    let (_, later) = turned_sun(&out, 30.0);
+    let (_, evening) = turned_sun(&out, 60.0);
+    let server = serve(&out);
+    let query =
+        "url=/bake/porch.baked.glb&camera=cam&size=400x300&tonemap=none&exposure=0&view=lightmap";
+    let cases = [
+        (
+            "30°, sky 0.6,0.5,0.4",
+            format!("sun={later}&sky=0.6,0.5,0.4"),
+            vec!["--sun-direction", later.as_str(), "--sky", "0.6,0.5,0.4"],
+        ),
+        (
+            "60°, irradiance 9,8,6",
+            format!("sun={evening}&sun_irradiance=9,8,6"),
+            vec![
+                "--sun-direction",
+                evening.as_str(),
+                "--sun-irradiance",
+                "9,8,6",
+            ],
+        ),
+    ];
+    for (i, (what, params, flags)) in cases.iter().enumerate() {
+        let png = out.join(format!("three_live{i}.png"));
+        let report = open_viewer(server.port, &format!("{query}&{params}"), &png);
+        assert_eq!(report["errors"], serde_json::json!([]), "{what}");
+        assert_eq!(report["live"]["light"], "sun", "{report}");
+        assert!(
+            report["live"]["iterations"].as_u64().unwrap() >= 1,
+            "{report}"
+        );
+        let three = linear_pixels(&png);
+        let mut extra = vec!["--view", "lightmap"];
+        extra.extend(flags.iter().copied());
+        let ours = preview(
+            &glb,
+            "cam",
+            "400x300",
+            &extra,
+            &out.join(format!("preview_live{i}.png")),
+        );
+        let (mean, p95) = agreement(&three, &ours);
+        eprintln!(
+            "live sun {what}: three.js / preview mean {mean:.4}, 95th-percentile pixel difference {:.2} % ({} iterations, {:.1} ms in the page)",
+            100.0 * p95,
+            report["live"]["iterations"],
+            report["live"]["ms"].as_f64().unwrap()
+        );
+        assert!((mean - 1.0).abs() <= 0.03, "{what}: mean ratio {mean}");
+        assert!(p95 <= 0.05, "{what}: 95th percentile {p95}");
+    }
+}
+
+/// Bad live input in the viewer is an error naming it, never a wrong
+/// image: a `live.bin` with a byte of its body flipped (its checksum), one
+/// cut short, a sun of zero length, and a weight for the live layer
+/// (re-solved, not weighted).
+#[test]
+#[ignore = "needs tests/web/node_modules and Chromium (CI runs it)"]
+fn viewer_live_bad_input_is_named() {
+    let out = live_porch("web-live-bad");
+    let query = "url=/bake/porch.baked.glb&camera=cam&size=160x120";
+    let errors_of = |dir: &Path, extra: &str| {
+        let server = serve(dir);
+        let report = open_viewer(
+            server.port,
+            &format!("{query}{extra}"),
+            &dir.join("three_bad.png"),
+        );
+        report["errors"].to_string()
+    };
+    let e = errors_of(&out, "&sun=0,0,0");
+    assert!(
+        e.contains("sun direction") && e.contains("zero length"),
+        "{e}"
+    );
+    let e = errors_of(&out, "&layer=live=2");
+    assert!(
+        e.contains("light layer live") && e.contains("re-solved"),
+        "{e}"
+    );
+    let broken = temp_dir("web-live-broken");
+    for f in std::fs::read_dir(&out).unwrap().flatten() {
+        std::fs::copy(f.path(), broken.join(f.file_name())).unwrap();
+    }
+    let live_bin = broken.join("live.bin");
+    let bytes = std::fs::read(&live_bin).unwrap();
+    let mut flipped = bytes.clone();
+    let n = flipped.len();
+    flipped[n - 100] ^= 0x10;
+    std::fs::write(&live_bin, &flipped).unwrap();
+    let e = errors_of(&broken, "");
+    assert!(e.contains("live.bin") && e.contains("checksum"), "{e}");
+    std::fs::write(&live_bin, &bytes[..n / 2]).unwrap();
+    let e = errors_of(&broken, "");
+    assert!(e.contains("live.bin") && e.contains("truncated"), "{e}");
+    eprintln!("bad live input: {e}");
+}

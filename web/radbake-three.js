@@ -10,6 +10,8 @@
 //   scene.add(probes.lightProbeAt(character.position));             // a LightProbe
 //   const layers = await loadRadbakeLayers('bake/manifest.json', gltf.scene, probes);
 //   layers.setLayerWeight('lamp', [2, 1.6, 1]);                     // optional
+//   const live = await loadRadbakeLive('bake/manifest.json', layers); // a live bake (--live)
+//   live.setSun([0.3, 0.8, 0.5]);                                    // its bounce light re-solved
 //
 // Conventions (docs/engines.md, three.js): a lightmap texel holds incident
 // irradiance / π as sRGB(value / s) with one scale s per instance, and
@@ -26,6 +28,11 @@
 // the glb's atlas rectangle and uv1 kept and lightMapIntensity = π (the
 // page holds irradiance / π unscaled), and rewrites the probes' SH to the
 // same sum.
+//
+// Live radiosity (docs/live.md): `loadRadbakeLive` runs the live bake's
+// solve (radbake-live.js, the Rust run time's port) for a new sun and puts
+// its pages in place of the live layer's, so the lightmap becomes
+// Σ_{k ≠ live} wₖ × layer k + the live pages, as `radbake relight` writes.
 
 import * as THREE from 'three';
 import { EXRLoader } from 'three/addons/loaders/EXRLoader.js';
@@ -218,6 +225,42 @@ function weightOf(value) {
   return rgb && rgb.every((w) => typeof w === 'number' && Number.isFinite(w) && w >= 0) ? rgb : null;
 }
 
+/** sum += w ⊙ src, both packed RGB. */
+function accumulate(sum, src, [r, g, b]) {
+  for (let j = 0; j < sum.length; j += 3) {
+    sum[j] += r * src[j];
+    sum[j + 1] += g * src[j + 1];
+    sum[j + 2] += b * src[j + 2];
+  }
+}
+
+/** Packed RGB floats to RGBA half floats (alpha left as it is), rounded to nearest (+ half a half-float step). */
+function toHalf(sum, out) {
+  const { base, shift } = HALF;
+  const bits = new Uint32Array(sum.buffer, sum.byteOffset, sum.length);
+  // Unrolled over the channels: a loop over c here takes 1.6 × as long in V8.
+  for (let j = 0, o = 0; j < bits.length; j += 3, o += 4) {
+    let f = bits[j] + 0x1000;
+    let e = (f >>> 23) & 0x1ff;
+    out[o] = base[e] + ((f & 0x7fffff) >> shift[e]);
+    f = bits[j + 1] + 0x1000;
+    e = (f >>> 23) & 0x1ff;
+    out[o + 1] = base[e] + ((f & 0x7fffff) >> shift[e]);
+    f = bits[j + 2] + 0x1000;
+    e = (f >>> 23) & 0x1ff;
+    out[o + 2] = base[e] + ((f & 0x7fffff) >> shift[e]);
+  }
+}
+
+/** sum = fixed + w ⊙ src, all packed RGB. */
+function addTo(sum, fixed, src, [r, g, b]) {
+  for (let j = 0; j < sum.length; j += 3) {
+    sum[j] = fixed[j] + r * src[j];
+    sum[j + 1] = fixed[j + 1] + g * src[j + 1];
+    sum[j + 2] = fixed[j + 2] + b * src[j + 2];
+  }
+}
+
 /**
  * Loads the light layers of the bake whose `manifest.json` is at
  * `manifestUrl` and makes the lightmapped materials under `root` (the
@@ -233,13 +276,18 @@ function weightOf(value) {
  * coefficients become the same sum.
  *
  * Returns `{ names, weight(name), setLayerWeight(name, w),
- * setLayerWeights({ name: w, ... }), cost }`: `names` the layers in the
- * manifest's order (none for a bake without layers); a weight `w` is a
- * number or [r, g, b], non-negative; layers not named keep theirs.
- * Setting weights recombines on the CPU at once; `cost` is
- * `{ ms, texels }` of the last recombination. An unknown layer or a bad
- * weight is an error and changes nothing. Half floats hold up to 65504:
- * larger sums are stored as 65504.
+ * setLayerWeights({ name: w, ... }), replaceLayer(name, pages, why),
+ * page(index), cost }`: `names` the layers in the manifest's order (none
+ * for a bake without layers); a weight `w` is a number or [r, g, b],
+ * non-negative; layers not named keep theirs. Setting weights recombines
+ * on the CPU at once; `cost` is `{ ms, texels }` of the last
+ * recombination. An unknown layer or a bad weight is an error and changes
+ * nothing. Half floats hold up to 65504: larger sums are stored as 65504.
+ * `replaceLayer` gives one layer's pages at run time (loadRadbakeLive's
+ * live layer; see there). `page(index)` is lightmap page `index` as
+ * combined, before the half-float conversion: `{ width, height, rgb }`,
+ * rgb packed linear RGB (irradiance / π), row 0 at v = 0, rewritten by
+ * every recombination.
  */
 export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
   const base = new URL(manifestUrl, location.href);
@@ -344,59 +392,81 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
   });
 
   const cost = { ms: 0, texels: 0 };
-  /** Writes Σₖ wₖ × layer k into every page and the probes. */
-  function recombine() {
+  // A layer whose pages are given at run time (`replaceLayer`: the live
+  // layer): its index, why its weight is fixed, and per page the other
+  // layers' weighted sum, recomputed only when a weight changes.
+  let replacedLayer = null;
+
+  /**
+   * Writes Σₖ wₖ × layer k into every page, and with `all` the layers'
+   * emission and the probes too (a replaced layer's new pages change
+   * neither: its probes stay as baked).
+   */
+  function recombine(all = true) {
     if (!names.length) return;
     const started = performance.now();
     const w = names.map((n) => weights.get(n));
-    const { base, shift } = HALF;
     let texels = 0;
     for (const [page, { texture, clones, sum }] of combined) {
       const sources = layerPages.map((pages) => pages.get(page).rgb);
-      for (let k = 0; k < sources.length; k++) {
-        const src = sources[k];
-        const [r, g, b] = w[k];
-        if (k === 0) {
-          for (let j = 0; j < sum.length; j += 3) {
-            sum[j] = r * src[j];
-            sum[j + 1] = g * src[j + 1];
-            sum[j + 2] = b * src[j + 2];
-          }
-        } else {
-          for (let j = 0; j < sum.length; j += 3) {
-            sum[j] += r * src[j];
-            sum[j + 1] += g * src[j + 1];
-            sum[j + 2] += b * src[j + 2];
-          }
+      if (replacedLayer) {
+        const { k: r, fixed } = replacedLayer;
+        const others = fixed.get(page);
+        if (all || replacedLayer.stale) {
+          others.fill(0);
+          sources.forEach((src, k) => k !== r && accumulate(others, src, w[k]));
         }
+        addTo(sum, others, sources[r], w[r]);
+      } else {
+        sum.fill(0);
+        sources.forEach((src, k) => accumulate(sum, src, w[k]));
       }
-      // To half floats, rounded to nearest (+ half a half-float step).
-      const bits = new Uint32Array(sum.buffer);
-      const out = texture.image.data;
-      for (let j = 0, o = 0; j < bits.length; j += 3, o += 4) {
-        for (let c = 0; c < 3; c++) {
-          const f = bits[j + c] + 0x1000;
-          const e = (f >>> 23) & 0x1ff;
-          out[o + c] = base[e] + ((f & 0x7fffff) >> shift[e]);
-        }
-      }
+      toHalf(sum, texture.image.data);
       texels += sum.length / 3;
       for (const t of clones) t.needsUpdate = true;
     }
-    for (const { material, layer, emissive } of emitters) {
-      const [r, g, b] = w[layer];
-      material.emissive.setRGB(emissive.r * r, emissive.g * g, emissive.b * b);
-    }
-    if (probes) {
-      const out = probes.floats;
-      for (let i = 0; i < out.length; i++) {
-        let v = 0;
-        for (let k = 0; k < layerProbes.length; k++) v += w[k][i % 3] * layerProbes[k][i];
-        out[i] = v;
+    if (replacedLayer) replacedLayer.stale = false;
+    if (all) {
+      for (const { material, layer, emissive } of emitters) {
+        const [r, g, b] = w[layer];
+        material.emissive.setRGB(emissive.r * r, emissive.g * g, emissive.b * b);
+      }
+      if (probes) {
+        const out = probes.floats;
+        for (let i = 0; i < out.length; i++) {
+          let v = 0;
+          for (let k = 0; k < layerProbes.length; k++) v += w[k][i % 3] * layerProbes[k][i];
+          out[i] = v;
+        }
       }
     }
     cost.ms = performance.now() - started;
     cost.texels = texels;
+  }
+
+  /**
+   * Layer `name`'s pages become `pages` (per page index, `{ width,
+   * height, rgb }` with rgb packed linear RGB as the EXR pages: kept by
+   * reference), recombined at once; its probes stay as baked. With `why`,
+   * a weight for it is an error saying so. Returns `refresh()`, which
+   * recombines the pages after `pages` changed in place: the other layers'
+   * weighted sum is kept between weight changes, so a refresh costs one
+   * add per texel and the half-float conversion.
+   */
+  function replaceLayer(name, pages, why = null) {
+    const k = names.indexOf(known(name));
+    for (const [page, { texture }] of combined) {
+      const p = pages[page];
+      const { width, height } = texture.image;
+      if (!p || p.width !== width || p.height !== height || !(p.rgb instanceof Float32Array) || p.rgb.length !== width * height * 3) {
+        throw new Error(`light layer ${name}: its page ${page} is not ${width}×${height} RGB floats`);
+      }
+    }
+    for (const [page] of combined) layerPages[k].set(page, { url: `${name} (run time)`, ...pages[page] });
+    const fixed = new Map([...combined].map(([page, { sum }]) => [page, new Float32Array(sum.length)]));
+    replacedLayer = { k, name, why, fixed, stale: true };
+    recombine();
+    return () => recombine(false);
   }
 
   /** `name`, or an error naming it and the bake's layers. */
@@ -410,6 +480,7 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
   function setLayerWeights(changes) {
     const checked = Object.entries(changes).map(([name, value]) => {
       known(name);
+      if (replacedLayer && replacedLayer.name === name && replacedLayer.why) throw new Error(`light layer ${name}: ${replacedLayer.why}`);
       const rgb = weightOf(value);
       if (!rgb) throw new Error(`light layer ${name}: weight ${JSON.stringify(value)} is not a non-negative number or [r, g, b]`);
       return [name, rgb];
@@ -424,6 +495,120 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
     weight: (name) => [...weights.get(known(name))],
     setLayerWeight: (name, value) => setLayerWeights({ [name]: value }),
     setLayerWeights,
+    replaceLayer,
+    page: (index) => {
+      const c = combined.get(index);
+      if (!c) throw new Error(`no lightmap page ${index} (this bake's: ${[...combined.keys()].join(', ') || 'none'})`);
+      return { width: c.texture.image.width, height: c.texture.image.height, rgb: c.sum };
+    },
+    cost,
+  };
+}
+
+/**
+ * Live radiosity (docs/live.md) for the bake whose `manifest.json` is at
+ * `manifestUrl`, on its `layers` (what loadRadbakeLayers returned for
+ * the same bake). Fetches the manifest's `live` file (`live.bin`), reads
+ * and checks it (radbake-live.js, loaded only here: a truncated or
+ * corrupted file is an error naming it and the section), solves it for
+ * `sun` (default: the live light as baked; a cold start, as `radbake
+ * relight`) and puts its pages in place of the live layer's: the lightmap
+ * becomes Σ_{k ≠ live} wₖ × layer k + the live pages, the other layers at
+ * their weights, the sky's layer × new sky / baked sky per channel
+ * (`sky`, setSky). The probes keep the live light's bounce as baked.
+ *
+ * Returns `{ light, lights, runtime, sun(), sky(), setSun(direction,
+ * irradiance), setSuns(list), setSky(rgb), cost }`: `light` the live
+ * light's name (`lights` all of them, as baked), `sun()` its current
+ * `{ direction, irradiance }`, `sky()` the sky's radiance (null where the
+ * sky has no layer of its own), `runtime` the RadbakeLive (its `pages`
+ * the live layer's alone); `setSun` turns the light
+ * (direction towards the sun, y up, any length > 0; `irradiance` [r, g,
+ * b] W/m², left out: unchanged, at first as baked), solves from the last
+ * solution and rewrites the pages; `setSuns` takes one `{ direction,
+ * irradiance }` per live light; `setSky` the sky's radiance [r, g, b].
+ * `cost` is `{ ms, iterations, residual, solve, pages, lightmap }` of the
+ * last update (ms: the whole; solve: D and the Jacobi iterations; pages:
+ * the texels and the live pages; lightmap: the recombination into the
+ * half-float pages). A zero-length or NaN direction, a bad irradiance or
+ * sky is an error naming it and changes nothing.
+ */
+export async function loadRadbakeLive(manifestUrl, layers, { sun = null, sky = null } = {}) {
+  const base = new URL(manifestUrl, location.href);
+  const manifest = await (await fetch(base)).json();
+  const entry = manifest.live;
+  if (!entry || typeof entry.file !== 'string') {
+    throw new Error(`${manifestUrl}: the bake has no live lights (no \`live\`): bake with --live or a light in mode \`live\``);
+  }
+  const { parseRadbakeLive, RadbakeLive } = await import('./radbake-live.js');
+  const data = parseRadbakeLive(await fetchBytes(new URL(entry.file, base).href), entry.file);
+  const runtime = new RadbakeLive(data);
+  const h = data.header;
+  if (!layers.names.includes(h.layer)) {
+    throw new Error(`${entry.file}: its live layer "${h.layer}" is not among the bake's layers (${layers.names.join(', ') || 'none'})`);
+  }
+  const suns = h.lights.map((l) => ({ direction: [...l.direction], irradiance: [...l.irradiance] }));
+  let skyNow = h.sky ? [...h.sky.radiance] : null;
+  const cost = { ms: 0, iterations: 0, residual: 0, solve: 0, pages: 0, lightmap: 0 };
+  let refresh = null;
+
+  /** Solves for `list` (one { direction, irradiance? } per live light) and recombines. */
+  function setSuns(list) {
+    if (!Array.isArray(list)) throw new Error('setSuns: expected one { direction, irradiance } per live light');
+    const next = list.map((s, i) => ({
+      direction: s && s.direction,
+      irradiance: (s && s.irradiance) ?? (suns[i] || {}).irradiance,
+    }));
+    const solved = runtime.update(next);
+    next.forEach((s, i) => {
+      suns[i] = { direction: [...s.direction], irradiance: [...s.irradiance] };
+    });
+    if (refresh) refresh();
+    else refresh = layers.replaceLayer(h.layer, runtime.pages, "it is re-solved for the sun: give the sun's irradiance instead (setSun)");
+    Object.assign(cost, {
+      ms: solved.ms + layers.cost.ms,
+      iterations: solved.iterations,
+      residual: solved.residual,
+      solve: solved.solveMs,
+      pages: solved.pagesMs,
+      lightmap: layers.cost.ms,
+    });
+    return { ...cost };
+  }
+
+  function setSun(direction, irradiance = undefined) {
+    if (h.lights.length !== 1) throw new Error(`the bake has ${h.lights.length} live lights: give one sun each (setSuns)`);
+    return setSuns([{ direction, irradiance }]);
+  }
+
+  /** The sky layer's weight for sky radiance `rgb`: new / baked per channel, as `radbake relight --sky`. */
+  function setSky(rgb) {
+    if (!h.sky) {
+      throw new Error('sky: the bake\'s sky has no layer of its own (an HDRI, black, or shared with other lights): it cannot change colour');
+    }
+    if (!Array.isArray(rgb) || rgb.length !== 3 || !rgb.every((v) => typeof v === 'number' && Number.isFinite(v) && v >= 0)) {
+      throw new Error(`sky ${JSON.stringify(rgb)}: must be three numbers, finite and ≥ 0`);
+    }
+    const baked = h.sky.radiance;
+    if (baked.some((b, c) => b === 0 && rgb[c] > 0)) {
+      throw new Error(`sky ${rgb.join(',')}: the baked sky ${baked.join(',')} is 0 in a channel it lights: bake with a sky that is not`);
+    }
+    layers.setLayerWeight(h.sky.layer, baked.map((b, c) => (b > 0 ? rgb[c] / b : 0)));
+    skyNow = [...rgb];
+  }
+
+  if (sky) setSky(sky);
+  if (sun) setSuns(h.lights.map((_, i) => (i === 0 ? sun : suns[i])));
+  else setSuns(suns);
+  return {
+    light: h.lights[0].name,
+    lights: h.lights,
+    runtime,
+    sun: () => ({ direction: [...suns[0].direction], irradiance: [...suns[0].irradiance] }),
+    sky: () => (skyNow ? [...skyNow] : null),
+    setSun,
+    setSuns,
+    setSky,
     cost,
   };
 }

@@ -14,15 +14,26 @@
 //   layer     NAME=W or NAME=R,G,B, repeatable: a light layer's weight, as
 //             `radbake preview --layer` (layers not named keep 1), e.g.
 //             ?url=…&layer=lamp=0&layer=ceiling=1,0.8,0.6
+//   sun       x,y,z: a live bake's sun (towards it, y up), its bounce light
+//             re-solved in the page (radbake-live.js), as `radbake relight
+//             --sun-direction` / `radbake preview --sun-direction`
+//   sun_irradiance  r,g,b W/m² (default: as baked)
+//   sky       r,g,b: the sky's radiance (its layer × new / baked)
 // A bake with light layers gets an intensity slider (0–4) and a colour per
-// layer. `window.radbake` reports { ready, error, cameras, probes, layers }
-// for scripts (layers: the names); ready comes after the `layer` weights
-// are applied, and an unknown layer name is an error naming it.
+// layer (not the live layer, whose light is re-solved). A live bake gets
+// the sun's controls: a time-of-day slider along its sun path, or, for a
+// grid, azimuth (from +X towards +Z, as `radbake preview`) and elevation
+// sliders, and the last update's time. `window.radbake` reports { ready,
+// error, cameras, probes, layers, live } for scripts (layers: the names;
+// live: { light, sun, ms, iterations, residual } of the last update, null
+// without a live bake); ready comes after the `layer`, `sun` and `sky`
+// parameters are applied, and an unknown layer name, a malformed or
+// zero-length sun, or a bad live.bin is an error naming it.
 
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
-import { HubsLightmapPlugin, RadbakeLightmapPlugin, loadRadbakeLayers, loadRadbakeProbes } from './radbake-three.js';
+import { HubsLightmapPlugin, RadbakeLightmapPlugin, loadRadbakeLayers, loadRadbakeLive, loadRadbakeProbes } from './radbake-three.js';
 
 const params = new URLSearchParams(location.search);
 const state = {
@@ -30,7 +41,7 @@ const state = {
   exposure: Number(params.get('exposure') || 0),
   tonemap: params.get('tonemap') || 'aces',
 };
-window.radbake = { ready: false, error: null, cameras: [], probes: 0, layers: [] };
+window.radbake = { ready: false, error: null, cameras: [], probes: 0, layers: [], live: null };
 
 const canvas = document.getElementById('view');
 const size = params.get('size') ? params.get('size').split('x').map(Number) : null;
@@ -44,6 +55,8 @@ let gltfCameras = [];
 let probes = null;
 let layers = null;
 let pendingWeights = null; // slider weights not applied yet: { name: [r, g, b] }
+let live = null; // loadRadbakeLive's handle, for a live bake
+let pendingSun = null; // a slider's sun direction not applied yet
 const reshades = []; // re-shade probe-lit geometry after the probes change
 const originals = new Map(); // mesh -> its lit (Lambert) material
 
@@ -226,8 +239,9 @@ function layerParams() {
 /** The sliders: per layer an intensity (0–4) and a colour, their product the weight. */
 function layerControls() {
   const bar = document.getElementById('layers');
+  const fixed = live ? live.runtime.header.layer : null; // re-solved, not weighted
   bar.replaceChildren(
-    ...layers.names.map((name) => {
+    ...layers.names.filter((name) => name !== fixed).map((name) => {
       const rgb = layers.weight(name);
       const intensity = Math.max(...rgb);
       const colour = intensity > 0 ? new THREE.Color(...rgb.map((c) => c / intensity)) : new THREE.Color(1, 1, 1);
@@ -244,6 +258,77 @@ function layerControls() {
       return label;
     }),
   );
+  resize();
+}
+
+/** URL parameter `name` as three numbers, or null if absent; a malformed one is an error naming it. */
+function vec3Param(name) {
+  const given = params.get(name);
+  if (given === null) return null;
+  const v = given.split(',').map((x) => (/^\s*[-+0-9.eE]+\s*$/.test(x) ? Number(x) : NaN));
+  if (v.length !== 3 || v.some((x) => !Number.isFinite(x))) throw new Error(`${name}=${given}: expected three comma-separated numbers`);
+  return v;
+}
+
+/** Degrees of elevation and azimuth (from +X towards +Z, as `radbake preview`) of a direction. */
+function angles([x, y, z]) {
+  const len = Math.hypot(x, y, z);
+  return [(Math.asin(Math.min(Math.max(y / len, -1), 1)) * 180) / Math.PI, (Math.atan2(z, x) * 180) / Math.PI];
+}
+
+/** `window.radbake.live` and the update time shown, from the last update. */
+function reportLive() {
+  const { cost } = live;
+  const [elevation, azimuth] = angles(live.sun().direction);
+  window.radbake.live = { light: live.light, sun: live.sun().direction, ms: cost.ms, iterations: cost.iterations, residual: cost.residual, solve: cost.solve, pages: cost.pages, lightmap: cost.lightmap };
+  document.getElementById('live-cost').textContent =
+    `${live.light}: elevation ${elevation.toFixed(1)}°, azimuth ${azimuth.toFixed(1)}°; update ${cost.ms.toFixed(1)} ms ` +
+    `(solve ${cost.solve.toFixed(1)}, pages ${cost.pages.toFixed(1)}, lightmap ${cost.lightmap.toFixed(1)}), ${cost.iterations} iterations`;
+}
+
+/**
+ * The sun's sliders: along the live light's sun path (its samples
+ * 0 … n − 1, between them interpolated and normalised), or azimuth and
+ * elevation for a grid bake.
+ */
+async function liveControls() {
+  const { nearestOnPath } = await import('./radbake-live.js');
+  const path = live.lights[0].path;
+  const bar = document.getElementById('live');
+  const slider = (title, min, max, step, value) => Object.assign(document.createElement('input'), { type: 'range', min, max, step, value, title });
+  const label = (text, ...inputs) => {
+    const l = document.createElement('label');
+    l.append(text, ...inputs);
+    return l;
+  };
+  const sun = live.sun().direction;
+  const cost = Object.assign(document.createElement('span'), { id: 'live-cost' });
+  if (path) {
+    const at = nearestOnPath(path, sun) || { k: 0, t: 0 };
+    const time = slider('time of day: along the sun path', 0, path.length - 1, 0.01, at.k + at.t);
+    time.addEventListener('input', () => {
+      const s = Number(time.value);
+      const k = Math.min(Math.floor(s), path.length - 2);
+      const t = path.length > 1 ? s - k : 0;
+      const a = path[Math.max(k, 0)];
+      const b = path[Math.min(k + 1, path.length - 1)];
+      pendingSun = [0, 1, 2].map((c) => (1 - t) * a[c] + t * b[c]);
+    });
+    bar.replaceChildren(label('time of day ', time), cost);
+  } else {
+    const [e, a] = angles(sun);
+    const elevation = slider('sun elevation (degrees)', 0, 90, 0.5, Math.max(e, 0));
+    const azimuth = slider('sun azimuth (degrees, from +X towards +Z)', -180, 180, 0.5, a);
+    const turn = () => {
+      const el = (Number(elevation.value) * Math.PI) / 180;
+      const az = (Number(azimuth.value) * Math.PI) / 180;
+      pendingSun = [Math.cos(el) * Math.cos(az), Math.sin(el), Math.cos(el) * Math.sin(az)];
+    };
+    elevation.addEventListener('input', turn);
+    azimuth.addEventListener('input', turn);
+    bar.replaceChildren(label('sun elevation ', elevation), label('azimuth ', azimuth), cost);
+  }
+  reportLive();
   resize();
 }
 
@@ -264,11 +349,26 @@ async function load(url) {
   probes = params.get('probes') ? await loadRadbakeProbes(params.get('probes')) : null;
   window.radbake.probes = probes ? probes.count : 0;
   const weights = layerParams();
+  const sun = vec3Param('sun');
+  const sunIrradiance = vec3Param('sun_irradiance');
+  const sky = vec3Param('sky');
   const manifest = await manifestFor(url);
   if (!manifest && Object.keys(weights).length) {
     throw new Error(`layer=${params.getAll('layer')[0]}: no manifest.json beside ${url} (name one with manifest=)`);
   }
   layers = manifest ? await loadRadbakeLayers(manifest, gltf.scene, probes) : null;
+  // A live bake: its sun solved in the page, the live layer's pages replaced.
+  const baked = manifest ? (await (await fetch(manifest)).json()).live : null;
+  const liveParam = ['sun', 'sun_irradiance', 'sky'].find((p) => params.has(p));
+  if (!baked && liveParam) {
+    throw new Error(`${liveParam}=${params.get(liveParam)}: ${manifest ? `${manifest} lists no live light (bake with --live)` : `no manifest.json beside ${url}`}`);
+  }
+  live = null;
+  window.radbake.live = null;
+  if (baked) {
+    const given = sun || sunIrradiance ? { direction: sun || baked.lights[0].direction, irradiance: sunIrradiance } : null;
+    live = await loadRadbakeLive(manifest, layers, { sun: given, sky });
+  }
   if (layers) layers.setLayerWeights(weights);
   window.radbake.layers = layers ? layers.names : [];
   gltf.scene.traverse((o) => {
@@ -280,6 +380,7 @@ async function load(url) {
   gltfCameras = gltf.cameras;
   window.radbake.cameras = gltfCameras.map((c) => c.name);
   if (layers && layers.names.length) layerControls();
+  if (live) await liveControls();
   if (probes) {
     addProbeSpheres();
     lightDynamicNodes(gltf.scene);
@@ -345,6 +446,11 @@ const url = params.get('url');
         pendingWeights = null;
         for (const shade of reshades) shade();
         for (const lit of originals.values()) if (lit.userData.source) lit.emissive.copy(lit.userData.source.emissive);
+      }
+      if (pendingSun) {
+        live.setSun(pendingSun);
+        pendingSun = null;
+        reportLive();
       }
       controls.update();
       render();

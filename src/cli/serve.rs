@@ -41,6 +41,11 @@ const FILES: &[(&str, &str, &[u8])] = &[
         include_bytes!("../../web/radbake-three.js"),
     ),
     (
+        "/radbake-live.js",
+        "text/javascript",
+        include_bytes!("../../web/radbake-live.js"),
+    ),
+    (
         "/vendor/three/build/three.module.js",
         "text/javascript",
         include_bytes!("../../web/vendor/three/build/three.module.js"),

@@ -4,7 +4,7 @@
 //
 //     node viewer_check.mjs <page url> <out.png>
 //
-// Prints JSON: { three, cameras, probes, layers, errors } on stdout.
+// Prints JSON: { three, cameras, probes, layers, live, errors } on stdout.
 
 import fs from 'node:fs';
 import { execSync } from 'node:child_process';
@@ -62,7 +62,7 @@ try {
   if (state.error) errors.push(state.error);
   const data = await tab.evaluate(() => document.getElementById('view').toDataURL('image/png'));
   fs.writeFileSync(out, Buffer.from(data.split(',')[1], 'base64'));
-  console.log(JSON.stringify({ three: state.three, cameras: state.cameras, probes: state.probes, layers: state.layers, errors }));
+  console.log(JSON.stringify({ three: state.three, cameras: state.cameras, probes: state.probes, layers: state.layers, live: state.live, errors }));
 } finally {
   await browser.close();
 }
