@@ -599,6 +599,25 @@ impl<'a> TexelPieces<'a> {
         })
     }
 
+    /// [`TexelPieces::light`]'s unshadowed irradiance / π alone (no
+    /// shadow rays); None where it reaches no piece.
+    pub fn unshadowed(&self, s: &Surfaces, light: &Light) -> Option<Vec3> {
+        let g = s.geometry;
+        let mut unshadowed = Vec3::ZERO;
+        let mut any = false;
+        for piece in self.pieces {
+            let p = self.side.fold(g.point(piece.tri, piece.u, piece.v));
+            let n = g.ng_ws[piece.tri as usize];
+            if let Some((value, _, _)) = punctual_irradiance(light, p, n) {
+                if piece.area * value.element_sum() > 0.0 {
+                    unshadowed += value * (piece.area / self.total);
+                    any = true;
+                }
+            }
+        }
+        any.then_some(unshadowed)
+    }
+
     /// `light` at the texel: the unshadowed irradiance summed exactly
     /// over the pieces and its lit fraction from up to [`PIECE_RAYS`] of
     /// them (see [`pieces_direct`]); None where it reaches no piece.
