@@ -7,7 +7,7 @@
 //! live layer from the run time's solution. The live light itself is one
 //! of the preview's real-time lights, turned with the sun.
 
-use super::model::{LinearPage, Model};
+use super::model::{place_sun, LinearPage, Model};
 use super::renderer::Renderer;
 use crate::output::relight::{read_live, Relight};
 use anyhow::{bail, Result};
@@ -31,24 +31,6 @@ pub fn angles(towards: Vec3) -> (f32, f32) {
 pub fn direction(elevation: f32, azimuth: f32) -> Vec3 {
     let (e, a) = (elevation.to_radians(), azimuth.to_radians());
     Vec3::new(e.cos() * a.cos(), e.sin(), e.cos() * a.sin())
-}
-
-/// Points the scene's light `name` towards `towards` with `irradiance`
-/// (the preview draws it in real time); false where there is none.
-pub fn place_sun(
-    scene: &mut crate::scene::Scene,
-    name: &str,
-    towards: Vec3,
-    irradiance: Vec3,
-) -> bool {
-    match scene.lights.iter_mut().find(|l| l.name == name) {
-        Some(l) => {
-            l.direction = -towards.normalize();
-            l.intensity = irradiance;
-            true
-        }
-        None => false,
-    }
 }
 
 /// The direction towards the live light of the bake beside `glb`, as

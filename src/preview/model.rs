@@ -459,6 +459,24 @@ fn push_instance(
     }
 }
 
+/// Points the scene's light `name` towards `towards` with `irradiance`
+/// (the preview draws it in real time); false where there is none.
+pub fn place_sun(
+    scene: &mut crate::scene::Scene,
+    name: &str,
+    towards: Vec3,
+    irradiance: Vec3,
+) -> bool {
+    match scene.lights.iter_mut().find(|l| l.name == name) {
+        Some(l) => {
+            l.direction = -towards.normalize();
+            l.intensity = irradiance;
+            true
+        }
+        None => false,
+    }
+}
+
 /// The recombined `pages` of a layered bake as the preview's pages, each
 /// checked against the size of the `.glb`'s page it replaces.
 fn linear_pages(
@@ -605,7 +623,7 @@ impl Model {
             .collect();
         let mut scene = scene;
         if let Some((name, towards, irradiance)) = relit_sun {
-            super::live::place_sun(&mut scene, &name, towards, irradiance);
+            place_sun(&mut scene, &name, towards, irradiance);
         }
         let mut model = Self::build(scene, &moz, lightmaps, probes);
         for m in &mut model.materials {
