@@ -191,6 +191,7 @@ fn fly_camera(
 /// `--day`: turns the live sun's node to where the sun is at this time of
 /// the day (its `live.bin` path, or an east–west arc for a grid bake), and
 /// shows the last solve in the title.
+#[allow(clippy::too_many_arguments)] // a Bevy system's parameters
 fn play_day(
     day: Res<Day>,
     time: Res<Time>,

@@ -27,6 +27,12 @@
 //!   `affects_lightmapped_meshes: false`;
 //! - keeps Bevy's `GlobalAmbientLight` off lightmapped meshes (the bake
 //!   holds the sky);
+//! - sets every light's colour to the glTF's numbers as linear RGB, as
+//!   `KHR_lights_punctual` defines it (Bevy's glTF loader reads them as
+//!   sRGB);
+//! - in a light-layered bake, recombines the pages at a [`RadbakeLayers`]'
+//!   weights ([`layers`]), and in a live bake re-solves the live sun's
+//!   bounce light when its light turns ([`live`]);
 //! - switches `affects_lightmapped_mesh_diffuse` off on the scene's baked
 //!   lights (their diffuse light on lightmapped meshes is in the lightmap)
 //!   and keeps it on for the lights radbake left to the engine (their
