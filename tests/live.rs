@@ -248,3 +248,44 @@ fn relight_writes_a_bake_folder_and_bad_input_is_named() {
     let e = error_of(&["relight", x, "--sun-direction", "0,1,0", "-o", r]);
     assert!(e.contains("manifest.json"), "{e}");
 }
+
+/// Along a sun path the table traces every fourth sample and the ones
+/// between only where a texel's ends differ (`sun_table::PATH_STRIDE`):
+/// on the porch over a day (256 samples), against tracing every sample,
+/// the bytes that differ are few and small.
+#[test]
+fn the_path_stride_keeps_the_table() {
+    let (scene, config, _) = porch_at_node();
+    let bake = radbake::bake(&scene, &config, &Silent).unwrap();
+    let rays = radbake::raycast::RayCaster::new(&scene, &bake.geometry);
+    let s = bake.surfaces(&rays);
+    let path = radbake::scene::sun_path::SunPath::Day {
+        latitude: 40.0,
+        day: 172.0,
+        samples: 256,
+    }
+    .directions()
+    .unwrap();
+    let light = &scene.lights[0];
+    let strided =
+        radbake::light::sun_table::sun_table_along(&s, light, &path, config.seed, &|_| {});
+    let every = radbake::light::sun_table::patch_direct(&s, light, &path, config.seed, &|_| {});
+    let p = every.len();
+    let (mut differ, mut worst) = (0usize, 0i32);
+    for (i, row) in every.iter().enumerate() {
+        for (k, v) in row.iter().enumerate() {
+            let q = (v * 255.0 * std::f32::consts::PI).round().clamp(0.0, 255.0) as i32;
+            let d = (q - strided[k * p + i] as i32).abs();
+            differ += (d > 0) as usize;
+            worst = worst.max(d);
+        }
+    }
+    let share = differ as f64 / strided.len() as f64;
+    eprintln!(
+        "path stride: {differ} of {} bytes differ ({:.4} %), worst by {worst}",
+        strided.len(),
+        100.0 * share
+    );
+    assert!(strided.iter().any(|&b| b > 0), "the table is lit");
+    assert!(share <= 0.005, "{:.4} % of the bytes differ", 100.0 * share);
+}
