@@ -69,56 +69,33 @@ pub fn patch_direct_along(
     seed: u64,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Vec<Vec<f32>> {
-    if light.has_extent() {
-        return patch_direct(s, light, towards, seed, advance);
-    }
+    let stride = if light.has_extent() { 1 } else { PATH_STRIDE };
+    per_patch(s, light, towards, (seed, stride), advance)
+}
+
+/// Per patch, per direction of `towards`: D, each texel's shadow rays cast
+/// at every `stride`-th direction (and the last) and between two only
+/// where they differ ([`add_texel`]); `stride` 1 traces every direction.
+fn per_patch(
+    s: &Surfaces,
+    light: &Light,
+    towards: &[Vec3],
+    (seed, stride): (u64, usize),
+    advance: &(dyn Fn(u64) + Sync),
+) -> Vec<Vec<f32>> {
     let dirs = turned(light, towards);
-    let n = dirs.len();
     (0..s.patches.len())
         .into_par_iter()
         .map(|i| {
-            let mut acc = vec![0.0f32; n];
+            let mut acc = vec![0.0f32; dirs.len()];
             let texels = s.patches.texels_of(i);
             for &t in texels {
                 let t = t as usize;
                 if s.burial.enclosed(t) {
-                    continue;
+                    continue; // inside a solid: nothing arrives
                 }
-                let Some(mut pieces) = TexelPieces::new(s, t) else {
-                    continue;
-                };
-                let area = s.texels.area[t];
-                let traced = |pieces: &mut TexelPieces, k: usize| -> Option<(f32, f32)> {
-                    let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
-                    (pieces.light(s, &dirs[k], &mut rng)).map(|seen| (seen.unshadowed.x, seen.visible))
-                };
-                let mut coarse: Vec<(usize, Option<(f32, f32)>)> = Vec::new();
-                let mut k = 0;
-                while k < n {
-                    coarse.push((k, traced(&mut pieces, k)));
-                    k = if k + 1 == n { n } else { (k + PATH_STRIDE).min(n - 1) };
-                }
-                for w in coarse.windows(2) {
-                    let ((a, va), (b, vb)) = (w[0], w[1]);
-                    // Wholly lit or wholly shadowed at both ends: that.
-                    let same = match (va, vb) {
-                        (Some((_, x)), Some((_, y))) if x == y && (x == 0.0 || x == 1.0) => Some(x),
-                        _ => None,
-                    };
-                    for (k, acc_k) in acc.iter_mut().enumerate().take(b).skip(a + 1) {
-                        let v = match same {
-                            Some(vis) => pieces.unshadowed(s, &dirs[k]).map(|u| (u.x, vis)),
-                            None => traced(&mut pieces, k),
-                        };
-                        if let Some((u, vis)) = v {
-                            *acc_k += u * vis * area;
-                        }
-                    }
-                }
-                for (k, v) in coarse {
-                    if let Some((u, vis)) = v {
-                        acc[k] += u * vis * area;
-                    }
+                if let Some(mut pieces) = TexelPieces::new(s, t) {
+                    add_texel(s, (t, &mut pieces), &dirs, (seed, stride), &mut acc);
                 }
             }
             advance(texels.len() as u64);
@@ -126,6 +103,53 @@ pub fn patch_direct_along(
             acc.iter().map(|v| v / a).collect()
         })
         .collect()
+}
+
+/// Texel `t`'s area × D for each of `dirs` added to `acc`: traced at every
+/// `stride`-th direction and the last; between two traced ones that see it
+/// wholly lit or wholly shadowed, its lit fraction is theirs (the
+/// unshadowed part still exact), else every one between is traced.
+fn add_texel(
+    s: &Surfaces,
+    (t, pieces): (usize, &mut TexelPieces),
+    dirs: &[Light],
+    (seed, stride): (u64, usize),
+    acc: &mut [f32],
+) {
+    let n = dirs.len();
+    let area = s.texels.area[t];
+    let traced = |pieces: &mut TexelPieces, k: usize| -> Option<(f32, f32)> {
+        // The direct stage's stream for the texel's first light.
+        let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
+        (pieces.light(s, &dirs[k], &mut rng)).map(|seen| (seen.unshadowed.x, seen.visible))
+    };
+    let mut coarse: Vec<(usize, Option<(f32, f32)>)> = Vec::new();
+    let mut k = 0;
+    while k < n {
+        coarse.push((k, traced(pieces, k)));
+        k = if k + 1 == n { n } else { (k + stride).min(n - 1) };
+    }
+    for w in coarse.windows(2) {
+        let ((a, va), (b, vb)) = (w[0], w[1]);
+        let same = match (va, vb) {
+            (Some((_, x)), Some((_, y))) if x == y && (x == 0.0 || x == 1.0) => Some(x),
+            _ => None,
+        };
+        for (k, acc_k) in acc.iter_mut().enumerate().take(b).skip(a + 1) {
+            let v = match same {
+                Some(vis) => pieces.unshadowed(s, &dirs[k]).map(|u| (u.x, vis)),
+                None => traced(pieces, k),
+            };
+            if let Some((u, vis)) = v {
+                *acc_k += u * vis * area;
+            }
+        }
+    }
+    for (k, v) in coarse {
+        if let Some((u, vis)) = v {
+            acc[k] += u * vis * area;
+        }
+    }
 }
 
 /// `light` at unit irradiance turned to each direction of `towards`.
@@ -162,33 +186,5 @@ pub fn patch_direct(
     seed: u64,
     advance: &(dyn Fn(u64) + Sync),
 ) -> Vec<Vec<f32>> {
-    let dirs = turned(light, towards);
-    let n = dirs.len();
-    (0..s.patches.len())
-        .into_par_iter()
-        .map(|i| {
-            let mut acc = vec![0.0f32; n];
-            let texels = s.patches.texels_of(i);
-            for &t in texels {
-                let t = t as usize;
-                if s.burial.enclosed(t) {
-                    continue; // inside a solid: nothing arrives
-                }
-                let Some(mut pieces) = TexelPieces::new(s, t) else {
-                    continue;
-                };
-                let area = s.texels.area[t];
-                for (k, l) in dirs.iter().enumerate() {
-                    // The direct stage's stream for the texel's first light.
-                    let mut rng = Stream::new(seed, PURPOSE_EXTENT, t as u64);
-                    if let Some(seen) = pieces.light(s, l, &mut rng) {
-                        acc[k] += seen.unshadowed.x * seen.visible * area;
-                    }
-                }
-            }
-            advance(texels.len() as u64);
-            let a = s.patches.area[i];
-            acc.iter().map(|v| v / a).collect()
-        })
-        .collect()
+    per_patch(s, light, towards, (seed, 1), advance)
 }

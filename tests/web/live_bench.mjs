@@ -21,9 +21,8 @@
 import fs from 'node:fs';
 import http from 'node:http';
 import path from 'node:path';
-import { execSync } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
-import puppeteer from 'puppeteer-core';
+import { launchChromium } from './chromium.mjs';
 
 const [dirArg, stepsArg] = process.argv.slice(2);
 if (!dirArg) {
@@ -56,8 +55,7 @@ const server = http.createServer((req, res) => {
 await new Promise((ok) => server.listen(0, '127.0.0.1', ok));
 const origin = `http://127.0.0.1:${server.address().port}`;
 
-const executablePath = process.env.CHROMIUM || execSync('command -v chromium || command -v chromium-browser').toString().trim();
-const browser = await puppeteer.launch({ executablePath, headless: true, args: ['--no-sandbox'] });
+const browser = await launchChromium({ gl: false });
 
 /** Median and worst of `key` over `runs`. */
 function stat(runs, key) {

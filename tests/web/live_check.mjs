@@ -11,8 +11,7 @@
 // Prints JSON: { width, height, light, iterations, residual, ms, errors }.
 
 import fs from 'node:fs';
-import { execSync } from 'node:child_process';
-import puppeteer from 'puppeteer-core';
+import { launchChromium } from './chromium.mjs';
 
 const [origin, sunArg, skyArg, out] = process.argv.slice(2);
 if (!origin || !sunArg || !skyArg || !out) {
@@ -21,12 +20,7 @@ if (!origin || !sunArg || !skyArg || !out) {
 }
 const sun = sunArg.split(',').map(Number);
 const sky = skyArg === '-' ? null : skyArg.split(',').map(Number);
-const executablePath = process.env.CHROMIUM || execSync('command -v chromium || command -v chromium-browser').toString().trim();
-const browser = await puppeteer.launch({
-  executablePath,
-  headless: true,
-  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
-});
+const browser = await launchChromium();
 const errors = [];
 try {
   const tab = await browser.newPage();

@@ -7,20 +7,14 @@
 // Prints JSON: { three, cameras, probes, layers, live, errors } on stdout.
 
 import fs from 'node:fs';
-import { execSync } from 'node:child_process';
-import puppeteer from 'puppeteer-core';
+import { launchChromium } from './chromium.mjs';
 
 const [url, out] = process.argv.slice(2);
 if (!url || !out) {
   console.error('usage: node viewer_check.mjs <page url> <out.png>');
   process.exit(2);
 }
-const executablePath = process.env.CHROMIUM || execSync('command -v chromium || command -v chromium-browser').toString().trim();
-const browser = await puppeteer.launch({
-  executablePath,
-  headless: true,
-  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
-});
+const browser = await launchChromium();
 const errors = [];
 
 // Opens the page in a new tab and waits for the viewer's first frame
