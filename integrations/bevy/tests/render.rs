@@ -73,6 +73,21 @@ struct Target(Handle<Image>);
 #[derive(Resource, Clone, Default)]
 struct Captured(Arc<Mutex<Option<Vec<u8>>>>);
 
+/// Asks for one readback of the render target into `captured`.
+fn read_back(world: &mut World, captured: &Captured) {
+    let target = world.resource::<Target>().0.clone();
+    let sink = captured.0.clone();
+    world.spawn(Readback::texture(target)).observe(
+        move |event: On<ReadbackComplete>, mut commands: Commands| {
+            let mut slot = sink.lock().unwrap();
+            if slot.is_none() {
+                *slot = Some(event.data.clone());
+                commands.entity(event.entity).despawn();
+            }
+        },
+    );
+}
+
 /// Bevy's default plugins, headless (no window, no winit), assets from
 /// `dir`.
 fn headless_plugins(dir: &Path) -> bevy::app::PluginGroupBuilder {
@@ -149,17 +164,7 @@ fn run_bevy(dir: &Path, render: bool) -> BevyRun {
         // Frames for the uploads (the lightmap pages, the volume), then
         // one readback.
         if ready_at.is_some_and(|r| frame == r + 60) {
-            let target = world.resource::<Target>().0.clone();
-            let sink = captured.0.clone();
-            world.spawn(Readback::texture(target)).observe(
-                move |event: On<ReadbackComplete>, mut commands: Commands| {
-                    let mut slot = sink.lock().unwrap();
-                    if slot.is_none() {
-                        *slot = Some(event.data.clone());
-                        commands.entity(event.entity).despawn();
-                    }
-                },
-            );
+            read_back(world, &captured);
         }
         if captured.0.lock().unwrap().is_some() {
             break;
@@ -648,6 +653,39 @@ fn indirect_lights_stay_on_for_lightmapped_meshes() {
     );
 }
 
+/// A headless Bevy app that renders the bake in `dir` (with `weights` on
+/// the bake entity, if any) from its glTF camera to the [`Target`], linear,
+/// on a black background; finished, ready to update.
+fn render_app(dir: &Path, weights: Option<RadbakeLayers>) -> App {
+    let mut app = App::new();
+    app.add_plugins(headless_plugins(dir).set(RenderPlugin {
+        synchronous_pipeline_compilation: true,
+        ..default()
+    }))
+    .add_plugins(ScheduleRunnerPlugin::default())
+    .add_plugins(RadbakePlugin::default())
+    .init_resource::<Captured>()
+    .insert_resource(ClearColor(Color::BLACK))
+    .add_systems(Update, aim_camera)
+    .add_systems(
+        Startup,
+        move |mut commands: Commands,
+              assets: Res<AssetServer>,
+              mut images: ResMut<Assets<Image>>| {
+            let mut image = Image::new_target_texture(SIZE, SIZE, TextureFormat::Rgba16Float, None);
+            image.texture_descriptor.usage |= TextureUsages::COPY_SRC;
+            commands.insert_resource(Target(images.add(image)));
+            let mut bake = commands.spawn(RadbakeBake::load(&assets, ""));
+            if let Some(w) = &weights {
+                bake.insert(w.clone());
+            }
+        },
+    );
+    app.finish();
+    app.cleanup();
+    app
+}
+
 /// A layered bake's two renders in one Bevy app, and the frame times
 /// around the change of weights between them.
 struct LayeredRun {
@@ -665,30 +703,7 @@ struct LayeredRun {
 /// Loads the bake in `dir` with `first` weights, renders it; sets
 /// `second`, renders again once they are applied.
 fn run_bevy_layers(dir: &Path, first: RadbakeLayers, second: RadbakeLayers) -> LayeredRun {
-    let mut app = App::new();
-    app.add_plugins(headless_plugins(dir).set(RenderPlugin {
-        synchronous_pipeline_compilation: true,
-        ..default()
-    }))
-    .add_plugins(ScheduleRunnerPlugin::default())
-    .add_plugins(RadbakePlugin::default())
-    .init_resource::<Captured>()
-    .insert_resource(ClearColor(Color::BLACK))
-    .add_systems(Update, aim_camera);
-    let weights = first.clone();
-    app.add_systems(
-        Startup,
-        move |mut commands: Commands,
-              assets: Res<AssetServer>,
-              mut images: ResMut<Assets<Image>>| {
-            let mut image = Image::new_target_texture(SIZE, SIZE, TextureFormat::Rgba16Float, None);
-            image.texture_descriptor.usage |= TextureUsages::COPY_SRC;
-            commands.insert_resource(Target(images.add(image)));
-            commands.spawn((RadbakeBake::load(&assets, ""), weights.clone()));
-        },
-    );
-    app.finish();
-    app.cleanup();
+    let mut app = render_app(dir, Some(first.clone()));
     let captured = app.world().resource::<Captured>().clone();
     let generation = |app: &mut App| {
         let world = app.world_mut();
@@ -718,17 +733,7 @@ fn run_bevy_layers(dir: &Path, first: RadbakeLayers, second: RadbakeLayers) -> L
             .any(|r| r.is_some_and(|r| frame == r + 60));
         if shoot {
             let world = app.world_mut();
-            let target = world.resource::<Target>().0.clone();
-            let sink = captured.0.clone();
-            world.spawn(Readback::texture(target)).observe(
-                move |event: On<ReadbackComplete>, mut commands: Commands| {
-                    let mut slot = sink.lock().unwrap();
-                    if slot.is_none() {
-                        *slot = Some(event.data.clone());
-                        commands.entity(event.entity).despawn();
-                    }
-                },
-            );
+            read_back(world, &captured);
         }
         if let Some(bytes) = captured.0.lock().unwrap().take() {
             shots.push(rgba16f(&bytes));
@@ -880,27 +885,7 @@ struct LiveRun {
 }
 
 fn run_bevy_live(dir: &Path, turn: Quat) -> LiveRun {
-    let mut app = App::new();
-    app.add_plugins(headless_plugins(dir).set(RenderPlugin {
-        synchronous_pipeline_compilation: true,
-        ..default()
-    }))
-    .add_plugins(ScheduleRunnerPlugin::default())
-    .add_plugins(RadbakePlugin::default())
-    .init_resource::<Captured>()
-    .insert_resource(ClearColor(Color::BLACK))
-    .add_systems(Update, aim_camera)
-    .add_systems(
-        Startup,
-        |mut commands: Commands, assets: Res<AssetServer>, mut images: ResMut<Assets<Image>>| {
-            let mut image = Image::new_target_texture(SIZE, SIZE, TextureFormat::Rgba16Float, None);
-            image.texture_descriptor.usage |= TextureUsages::COPY_SRC;
-            commands.insert_resource(Target(images.add(image)));
-            commands.spawn(RadbakeBake::load(&assets, ""));
-        },
-    );
-    app.finish();
-    app.cleanup();
+    let mut app = render_app(dir, None);
     let captured = app.world().resource::<Captured>().clone();
     let solved = |app: &mut App| {
         let world = app.world_mut();
@@ -937,17 +922,7 @@ fn run_bevy_live(dir: &Path, turn: Quat) -> LiveRun {
         }
         if shoot_at == Some(frame) {
             let world = app.world_mut();
-            let target = world.resource::<Target>().0.clone();
-            let sink = captured.0.clone();
-            world.spawn(Readback::texture(target)).observe(
-                move |event: On<ReadbackComplete>, mut commands: Commands| {
-                    let mut slot = sink.lock().unwrap();
-                    if slot.is_none() {
-                        *slot = Some(event.data.clone());
-                        commands.entity(event.entity).despawn();
-                    }
-                },
-            );
+            read_back(world, &captured);
         }
         if let Some(bytes) = captured.0.lock().unwrap().take() {
             shots.push(rgba16f(&bytes));
