@@ -31,8 +31,11 @@ pub struct Relight {
 }
 
 /// The solve's figures, for the manifest and the command's summary.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Relit {
+    /// The live light relit (its name in the scene) and its irradiance.
+    pub light: String,
+    pub irradiance: Vec3,
     pub iterations: u32,
     pub residual: f32,
     /// Seconds: the update (direct light, solve, texels, pages).
@@ -92,6 +95,7 @@ pub fn live_pages(data: LiveData, r: &Relight) -> Result<(Vec<Vec<Vec3>>, Relit)
         direction: r.sun_direction.to_array(),
         irradiance: irradiance.to_array(),
     };
+    let light = h.lights[0].name.clone();
     let start = std::time::Instant::now();
     let mut live = Live::new(data);
     let solve = live.update(&[sun]).map_err(|e| Error::Config {
@@ -102,6 +106,8 @@ pub fn live_pages(data: LiveData, r: &Relight) -> Result<(Vec<Vec<Vec3>>, Relit)
         .map(|p| p.into_iter().map(Vec3::from).collect())
         .collect();
     let relit = Relit {
+        light,
+        irradiance,
         iterations: solve.iterations,
         residual: solve.residual,
         seconds: start.elapsed().as_secs_f64(),

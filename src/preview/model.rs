@@ -593,12 +593,9 @@ impl Model {
                     weights: weights.to_vec(),
                     ..sun.clone()
                 };
-                let (pages, relit, _) = crate::output::relight::relit(dir, &sun)?;
+                let (pages, relit, solve) = crate::output::relight::relit(dir, &sun)?;
                 probes = relit.or(probes);
-                let live = crate::output::relight::read_live(dir)?;
-                let l = &live.header.lights[0];
-                let irradiance = sun.sun_irradiance.unwrap_or(Vec3::from(l.irradiance));
-                relit_sun = Some((l.name.clone(), sun.sun_direction, irradiance));
+                relit_sun = Some((solve.light, sun.sun_direction, solve.irradiance));
                 linear_pages(&pages, &lightmaps)?
             }
             None if weights.is_empty() => Vec::new(),
