@@ -116,6 +116,17 @@ fn is_default_live_grid(n: &u32) -> bool {
     *n == DEFAULT_LIVE_GRID
 }
 
+/// The default [`BakeConfig::live_probe_rays`].
+pub const DEFAULT_LIVE_PROBE_RAYS: u32 = 64;
+
+fn default_live_probe_rays() -> u32 {
+    DEFAULT_LIVE_PROBE_RAYS
+}
+
+fn is_default_live_probe_rays(n: &u32) -> bool {
+    *n == DEFAULT_LIVE_PROBE_RAYS
+}
+
 /// A day's sun path for the live lights ([`BakeConfig::sun_path`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -401,6 +412,15 @@ pub struct BakeConfig {
         skip_serializing_if = "is_default_live_grid"
     )]
     pub live_grid: u32,
+    /// A live bake's rays per probe for the probes' view of the patches
+    /// (`live.bin`; [`radbake_live::probes`]): 0 keeps the live layer's
+    /// probes as baked, else 1–4096. Left out of `report.json`'s settings
+    /// at the default.
+    #[serde(
+        default = "default_live_probe_rays",
+        skip_serializing_if = "is_default_live_probe_rays"
+    )]
+    pub live_probe_rays: u32,
     /// A sun path for the live lights whose node gives none
     /// (`extras.radbake.sun_path`): their tables are made along it, not over
     /// the hemisphere ([`crate::scene::sun_path`]).
@@ -588,6 +608,7 @@ impl BakeConfig {
             layers: LayerMode::Auto,
             sky_layer: None,
             live_grid: DEFAULT_LIVE_GRID,
+            live_probe_rays: DEFAULT_LIVE_PROBE_RAYS,
             sun_path: None,
             probes: true,
             probe_spacing: 1.0,
@@ -795,6 +816,9 @@ impl BakeConfig {
                 "sky_layer",
                 "must be a plain identifier (letters, digits, _; at most 32, not starting with a digit)",
             );
+        }
+        if self.live_probe_rays > 4096 {
+            return bad("live_probe_rays", "must be in 0..=4096");
         }
         if !(2..=64).contains(&self.live_grid) {
             return bad("live_grid", "must be in 2..=64");

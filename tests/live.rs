@@ -289,3 +289,96 @@ fn the_path_stride_keeps_the_table() {
     assert!(strided.iter().any(|&b| b > 0), "the table is lit");
     assert!(share <= 0.005, "{:.4} % of the bytes differ", 100.0 * share);
 }
+
+/// Irradiance / π at each probe for the six axis normals, over the valid
+/// probes.
+fn probe_cubes(sh: &[radbake::probes::Sh9], valid: &[bool]) -> Vec<Vec3> {
+    (sh.iter().zip(valid))
+        .filter(|(_, v)| **v)
+        .flat_map(|(s, _)| {
+            radbake::probes::sh::AXES.map(|n| radbake::probes::sh::irradiance_over_pi(s, n))
+        })
+        .collect()
+}
+
+/// Σ|a − b| / Σ|b|.
+fn rel_error(a: &[Vec3], b: &[Vec3]) -> f32 {
+    let num: f32 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).abs().element_sum())
+        .sum();
+    num / b.iter().map(|y| y.abs().element_sum()).sum::<f32>()
+}
+
+/// The live layer's probes follow the sun: the porch baked with its sun
+/// live, the runtime's probes for the sun turned 30° about +Y against a
+/// full bake with the sun there (mode `indirect`: the probes hold its
+/// bounce light alone, as the live layer's do). With the baked probes
+/// exactly as baked at the baked sun (`probe_delta` 0 there: the unit
+/// test in `live/src/solve.rs`).
+#[test]
+fn the_live_probes_follow_the_sun() {
+    let mut scene = radbake::scene::load(&scene_path("porch.gltf"), &Default::default()).unwrap();
+    let config = BakeConfig {
+        texels_per_meter: 4.0,
+        ..BakeConfig::default()
+    };
+    let mode = |scene: &mut radbake::scene::Scene, m: LightMode| {
+        let mut c = config.clone();
+        c.light_modes.lights.insert("sun".into(), m);
+        c.light_modes.apply(scene).unwrap();
+        c
+    };
+    let live_config = mode(&mut scene, LightMode::Live);
+    let bake = radbake::bake(&scene, &live_config, &Silent).unwrap();
+    let probes = bake.probes.as_ref().expect("probes");
+    let k = (bake.layers.as_ref().unwrap().names.iter())
+        .position(|n| n == "live")
+        .unwrap();
+    let baked = &probes.layers[k];
+    let to_sun = -scene.lights[0].direction;
+    let turned = glam::Quat::from_rotation_y(30f32.to_radians()) * to_sun;
+    let mut live = Live::new(bake.live.clone().unwrap());
+    live.update(&[Sun {
+        direction: turned.to_array(),
+        irradiance: scene.lights[0].intensity.to_array(),
+    }])
+    .unwrap();
+    let delta = live.probe_delta().expect("the probes' rays are kept");
+    let relit: Vec<radbake::probes::Sh9> = (baked.iter().zip(&delta))
+        .map(|(b, d)| std::array::from_fn(|i| b[i] + Vec3::from(d[i])))
+        .collect();
+
+    let mut full_scene = scene.clone();
+    let full_config = mode(&mut full_scene, LightMode::Indirect);
+    full_scene.lights[0].direction = -turned;
+    let full = radbake::bake(&full_scene, &full_config, &Silent).unwrap();
+    let fp = full.probes.as_ref().unwrap();
+    assert_eq!(fp.valid, probes.valid);
+    let want = probe_cubes(&fp.sh, &fp.valid);
+    let moved = rel_error(&probe_cubes(baked, &probes.valid), &want);
+    let error = rel_error(&probe_cubes(&relit, &probes.valid), &want);
+    println!(
+        "porch probes, sun turned 30°: as baked {:.2} % off the full bake, relit {:.2} % ({} valid probes)",
+        100.0 * moved,
+        100.0 * error,
+        want.len() / 6
+    );
+    // The live layer's texels against the full bake's, for scale: the
+    // probes can be no closer than the surfaces they see.
+    let texels: Vec<Vec3> = live.texels().into_iter().map(Vec3::from).collect();
+    let valid = &full.transport.valid;
+    let pick =
+        |v: &[Vec3]| -> Vec<Vec3> { (0..v.len()).filter(|t| valid[*t]).map(|t| v[t]).collect() };
+    let surfaces = rel_error(&pick(&texels), &pick(&full.maps.lightmaps.texel_values));
+    println!(
+        "  the live layer's texels {:.2} % off the full bake's",
+        100.0 * surfaces
+    );
+    assert!(moved > 0.05, "the turn changes the probes by {moved}");
+    assert!(
+        error < 0.4 * moved && error < 2.0 * surfaces,
+        "relit {error}, as baked {moved}, texels {surfaces}"
+    );
+}

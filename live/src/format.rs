@@ -22,6 +22,8 @@
 //! | its pixel: row-major index in its page | texel | u32 |
 //! | its page | texel | u16 |
 //! | padding pixels, page by page, ring by ring: the pixel and the 3 × 3 neighbour (0–8, row order) it copies | padding pixel | u32 + u8 |
+//! | with `probes` (K probes, n rays): each probe's validity (1 valid, 0 inside a solid) | probe | u8 |
+//! | the patch each probe ray meets, ray i along [`crate::probes::fibonacci`]`(i, n)` (u32::MAX: none, a back face, the sky) | probe × ray | u32 |
 //!
 //! Read back with every count, offset and index checked, so a truncated
 //! or corrupted file is an error naming the section, never a panic or a
@@ -34,7 +36,7 @@ use std::path::Path;
 /// The file's first bytes.
 pub const MAGIC: [u8; 8] = *b"RBLIVE\r\n";
 /// The format version this crate reads and writes.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 /// Largest patch or texel count accepted (2²⁸): a count beyond it is a
 /// corrupted header, not a scene.
 const MAX_COUNT: u64 = 1 << 28;
@@ -84,6 +86,29 @@ pub struct PageSize {
     pub height: u32,
 }
 
+/// A probe grid: its first probe and resolution (probe (i, j, k) is
+/// `first + i + Rx·(j + Ry·k)`), as `probes.json`'s volumes.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeGrid {
+    pub first: u64,
+    pub resolution: [u32; 3],
+}
+
+/// The probes' view of the patches ([`crate::probes`]): what a probe ray
+/// meets, for the live layer's probes to follow the sun.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeHeader {
+    /// Probes K, in `probes.bin`'s order.
+    pub count: u64,
+    /// Rays per probe n (a spherical Fibonacci set, the same for every
+    /// probe).
+    pub rays: u32,
+    /// The grids, in order, covering the K probes.
+    pub grids: Vec<ProbeGrid>,
+}
+
 /// The header: counts, the live lights and where their light goes.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -115,6 +140,9 @@ pub struct Header {
     pub lights: Vec<LiveLight>,
     /// The sky's layer, where its colour may change live.
     pub sky: Option<SkyLayer>,
+    /// The probes' view of the patches (none: a bake without probes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probes: Option<ProbeHeader>,
 }
 
 /// F in compressed sparse rows.
@@ -149,6 +177,16 @@ pub struct TexelMap {
     pub padding: Vec<Vec<(u32, u8)>>,
 }
 
+/// Per probe, what its rays meet ([`ProbeHeader`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ProbeHits {
+    /// False for a probe inside a solid (its light is filled from its
+    /// neighbours', [`crate::probes::fill_plan`]).
+    pub valid: Vec<bool>,
+    /// Probe-major: the patch ray i meets (u32::MAX: none).
+    pub hits: Vec<u32>,
+}
+
 /// The whole file's content.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LiveData {
@@ -159,6 +197,8 @@ pub struct LiveData {
     /// Per live light: directions × P bytes, direction-major.
     pub suns: Vec<Vec<u8>>,
     pub texels: TexelMap,
+    /// With [`Header::probes`].
+    pub probes: Option<ProbeHits>,
 }
 
 impl LiveData {
@@ -192,6 +232,10 @@ impl LiveData {
                 body.extend_from_slice(&i.to_le_bytes());
                 body.push(*n);
             }
+        }
+        if let Some(p) = &self.probes {
+            body.extend(p.valid.iter().map(|&v| v as u8));
+            put_u32s(&mut body, &p.hits);
         }
         let mut out = Vec::with_capacity(20 + header.len() + body.len());
         out.extend_from_slice(&MAGIC);
@@ -293,6 +337,9 @@ fn body_len(h: &Header) -> Option<u64> {
         dirs.checked_mul(p)?,
         t.checked_mul(4 + 4 + 16 + 4 + 2)?,
         padding.checked_mul(5)?,
+        h.probes
+            .as_ref()
+            .map_or(Some(0), |q| q.count.checked_mul(1 + 4 * q.rays as u64))?,
     ];
     parts.iter().try_fold(0u64, |a, b| a.checked_add(*b))
 }
@@ -320,6 +367,12 @@ fn check_header(h: &Header) -> Result<()> {
     {
         return Err(bad("a live light's direction or irradiance is not finite"));
     }
+    if h.lights
+        .iter()
+        .any(|l| l.direction.iter().all(|&x| x == 0.0))
+    {
+        return Err(bad("a live light's direction is of zero length"));
+    }
     let path_ok = |p: &Vec<[f32; 3]>| !p.is_empty() && p.len() <= 4096 && p.iter().all(finite);
     if h.lights
         .iter()
@@ -339,6 +392,32 @@ fn check_header(h: &Header) -> Result<()> {
     }
     if h.padding.len() != h.pages.len() {
         return Err(bad("the padding counts do not match the pages"));
+    }
+    if let Some(q) = &h.probes {
+        check_probe_header(q)?;
+    }
+    Ok(())
+}
+
+/// The probe grids cover the probes in order, the counts in range.
+fn check_probe_header(q: &ProbeHeader) -> Result<()> {
+    if q.count > MAX_COUNT || !(1..=4096).contains(&q.rays) {
+        return Err(bad("probe count or rays per probe out of range"));
+    }
+    let mut next = 0u64;
+    for g in &q.grids {
+        let [x, y, z] = g.resolution.map(u64::from);
+        let n = x.checked_mul(y).and_then(|n| n.checked_mul(z));
+        if g.first != next || n.is_none_or(|n| n == 0 || n > MAX_COUNT) {
+            return Err(bad("the probe grids do not cover the probes in order"));
+        }
+        next += n.unwrap_or(0);
+    }
+    if next != q.count {
+        return Err(bad(format!(
+            "the probe grids hold {next} probes, the header says {}",
+            q.count
+        )));
     }
     Ok(())
 }
@@ -410,6 +489,15 @@ fn parse_body(header: Header, body: &[u8]) -> Result<LiveData> {
                 .collect())
         })
         .collect::<Result<Vec<_>>>()?;
+    let probes = match &header.probes {
+        Some(q) => Some(ProbeHits {
+            valid: (r.take(q.count as usize, "probes' validity")?.iter())
+                .map(|&v| v != 0)
+                .collect(),
+            hits: r.u32s(q.count * q.rays as u64, "probes' ray hits")?,
+        }),
+        None => None,
+    };
     Ok(LiveData {
         albedo: albedo.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
         matrix: Matrix { rows, cols, vals },
@@ -425,6 +513,7 @@ fn parse_body(header: Header, body: &[u8]) -> Result<LiveData> {
             page,
             padding,
         },
+        probes,
         header,
     })
 }
@@ -493,6 +582,11 @@ fn check_body(d: &LiveData) -> Result<()> {
         };
         if !list.iter().all(ok) {
             return Err(bad("a padding pixel or its neighbour out of its page"));
+        }
+    }
+    if let Some(q) = &d.probes {
+        if q.hits.iter().any(|&x| x != u32::MAX && x as usize >= p) {
+            return Err(bad("a probe ray's patch out of range"));
         }
     }
     Ok(())

@@ -18,12 +18,14 @@
 //! 3. the texels' bounce light F L, reconstructed from the patches as the
 //!    bake's first pass does.
 //!
-//! The result replaces the live layer's pages; the other layers (the sky's,
+//! The result replaces the live layer's pages, and [`Live::probe_delta`]
+//! moves the live layer's probes with it ([`probes`]); the other layers (the sky's,
 //! scaled by a new sky colour, and everything else) stay as baked.
 //! Texels hold incident irradiance / π, as every radbake lightmap.
 
 pub mod directions;
 pub mod format;
+pub mod probes;
 mod solve;
 
 pub use format::{Header, LiveData, LiveLight, PageSize, SkyLayer};

@@ -68,6 +68,12 @@ pub struct Live {
     /// Per page and pixel: the texel whose value it shows (u32::MAX: none),
     /// the padding's copies resolved to their texel.
     sources: Vec<Vec<u32>>,
+    /// With probe hits: per ray, its SH basis × 4π/n, and the fill.
+    probe_basis: Vec<[f32; 9]>,
+    probe_fill: Vec<(u32, Vec<u32>)>,
+    /// The patches' L at the baked suns (made at the first
+    /// [`Live::probe_delta`]).
+    baked: Option<Vec<[f32; 3]>>,
 }
 
 impl Live {
@@ -83,6 +89,13 @@ impl Live {
         let weights = corner_weights(&data);
         let (starts, by_patch) = texels_by_patch(&data);
         let sources = pixel_sources(&data);
+        let (probe_basis, probe_fill) = match (&data.header.probes, &data.probes) {
+            (Some(q), Some(hits)) => (
+                crate::probes::weighted_basis(q.rays),
+                crate::probes::fill_plan(&q.grids, &hits.valid),
+            ),
+            _ => (Vec::new(), Vec::new()),
+        };
         Live {
             data,
             vals,
@@ -93,7 +106,51 @@ impl Live {
             starts,
             by_patch,
             sources,
+            probe_basis,
+            probe_fill,
+            baked: None,
         }
+    }
+
+    /// The suns as baked (the header's lights).
+    pub fn baked_suns(&self) -> Vec<Sun> {
+        (self.data.header.lights.iter())
+            .map(|l| Sun {
+                direction: l.direction,
+                irradiance: l.irradiance,
+            })
+            .collect()
+    }
+
+    /// Per probe, the change of the live layer's radiance SH since the
+    /// baked suns, filled into the invalid probes as the bake fills them
+    /// ([`crate::probes`]): the live layer's probes now are its baked ones
+    /// (`probes_<layer>.bin`) + this. `None` for a file without probe
+    /// hits. The first call solves once at the baked suns, from zero.
+    pub fn probe_delta(&mut self) -> Option<Vec<crate::probes::Sh9>> {
+        self.data.probes.as_ref()?;
+        if self.baked.is_none() {
+            let now = (
+                self.direct.clone(),
+                self.radiance.clone(),
+                self.indirect.clone(),
+            );
+            let suns = self.baked_suns();
+            self.radiance.iter_mut().for_each(|l| *l = [0.0; 3]);
+            // The header's directions are checked to be of length > 0.
+            if self.set_suns(&suns).is_ok() {
+                self.solve(self.data.header.max_iterations);
+            }
+            self.baked = Some(std::mem::take(&mut self.radiance));
+            (self.direct, self.radiance, self.indirect) = now;
+        }
+        let (hits, baked) = (self.data.probes.as_ref()?, self.baked.as_ref()?);
+        let dl: Vec<[f32; 3]> = (self.radiance.iter().zip(baked))
+            .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+            .collect();
+        let mut delta = crate::probes::delta(hits, &self.probe_basis, &dl);
+        crate::probes::apply_fill(&self.probe_fill, &mut delta, crate::probes::mean_sh);
+        Some(delta)
     }
 
     /// The file's content.
@@ -447,6 +504,7 @@ mod tests {
                     path: None,
                 }],
                 sky: None,
+                probes: None,
             },
             albedo: vec![[rho; 3]; 2],
             matrix: Matrix {
@@ -467,6 +525,7 @@ mod tests {
                 // Pixel 2 copies its left neighbour (3 × 3 index 3).
                 padding: vec![vec![(2, 3)]],
             },
+            probes: None,
         }
     }
 
@@ -540,5 +599,67 @@ mod tests {
         let mut bad = data;
         bad.texels.padding[0][0].1 = 5; // right of the last pixel
         assert!(msg(&bad.to_bytes()).contains("neighbour out of its page"));
+    }
+
+    /// The two patches with two probes of two rays: the first sees
+    /// patch 0 then patch 1, the second (invalid) is filled from it.
+    fn with_probes(mut data: LiveData) -> LiveData {
+        data.header.probes = Some(crate::format::ProbeHeader {
+            count: 2,
+            rays: 2,
+            grids: vec![crate::format::ProbeGrid {
+                first: 0,
+                resolution: [2, 1, 1],
+            }],
+        });
+        data.probes = Some(crate::format::ProbeHits {
+            valid: vec![true, false],
+            hits: vec![0, 1, u32::MAX, u32::MAX],
+        });
+        data
+    }
+
+    /// At the baked sun the probes do not change; at twice its
+    /// irradiance they change by the baked patches' L projected along the
+    /// rays (transport is linear), and the invalid probe takes its
+    /// neighbour's change. The file keeps the hits, and a hit out of range
+    /// is named.
+    #[test]
+    fn the_probes_follow_the_sun() {
+        let data = with_probes(two_patches(0.5, 0.8));
+        let bytes = data.to_bytes();
+        assert_eq!(LiveData::from_bytes(&bytes).unwrap(), data);
+        let mut live = Live::new(data.clone());
+        let baked = live.baked_suns();
+        live.update(&baked).unwrap();
+        let zero = live.probe_delta().unwrap();
+        assert!(
+            zero.iter().flatten().flatten().all(|v| v.abs() < 1e-6),
+            "{zero:?}"
+        );
+        let l = live.patch_radiance().to_vec();
+        let twice = [Sun {
+            irradiance: [2.0; 3],
+            ..baked[0]
+        }];
+        live.update(&twice).unwrap();
+        let d = live.probe_delta().unwrap();
+        let y = crate::probes::weighted_basis(2);
+        for k in 0..9 {
+            let want = l[0][0] * y[0][k] + l[1][0] * y[1][k];
+            assert!(
+                (d[0][k][0] - want).abs() < 1e-4 * l[0][0],
+                "{k}: {:?} {want}",
+                d[0][k]
+            );
+            assert_eq!(d[1][k], d[0][k], "filled from its neighbour");
+        }
+        let mut bad = data;
+        bad.probes.as_mut().unwrap().hits[1] = 9;
+        let e = LiveData::from_bytes(&bad.to_bytes()).unwrap_err();
+        assert!(
+            e.to_string().contains("probe ray's patch out of range"),
+            "{e}"
+        );
     }
 }

@@ -127,6 +127,10 @@ pub struct BakeArgs {
     /// A live bake's sun directions: an n × n grid over the upper hemisphere, 2 to 64 [default: 12].
     #[arg(long, value_name = "N")]
     pub live_grid: Option<u32>,
+    /// A live bake's rays per probe for the live probes' view of the patches, 0 to 4096 (0: the
+    /// live light's bounce in the probes stays as baked) [default: 64].
+    #[arg(long, value_name = "N")]
+    pub live_probe_rays: Option<u32>,
     /// A live sun's path, `LATITUDE,DAY[,SAMPLES]` (degrees north, day 1–366, default 256 samples),
     /// for live lights whose node gives no `extras.radbake.sun_path`: tables along it, not over the
     /// hemisphere.
@@ -357,6 +361,9 @@ impl BakeArgs {
         }
         if let Some(n) = self.live_grid {
             c.live_grid = n;
+        }
+        if let Some(n) = self.live_probe_rays {
+            c.live_probe_rays = n;
         }
         if let Some(p) = self.sun_path {
             c.sun_path = Some(p);

@@ -103,8 +103,20 @@ fn weighted_layers(
 }
 
 /// One layer's pages given in place of its files (`radbake relight`'s
-/// live layer): its name, the pages' size and the pages, row-major RGB.
-pub type Replacement<'a> = Option<(&'a str, [u32; 2], &'a [Vec<Vec3>])>;
+/// live layer), and a change of its probes.
+#[derive(Clone, Copy)]
+pub struct Replaced<'a> {
+    /// The layer's name.
+    pub layer: &'a str,
+    /// The pages' size and the pages, row-major RGB.
+    pub size: [u32; 2],
+    pub pages: &'a [Vec<Vec3>],
+    /// Per probe, added to the layer's probes as read (none: as baked).
+    pub probe_delta: Option<&'a [Sh9]>,
+}
+
+/// A [`Replaced`] layer, or none.
+pub type Replacement<'a> = Option<Replaced<'a>>;
 
 /// Page `page` of every layer, weighted and summed (a `replace`d layer's
 /// from its given pages).
@@ -124,8 +136,9 @@ fn combined_page(
             })?;
         let path = dir.join(file);
         let (width, height, px) = match replace {
-            Some((r, [w, h], pages)) if r == name => {
-                (w, h, pages.get(page).cloned().unwrap_or_default())
+            Some(r) if r.layer == name => {
+                let [w, h] = r.size;
+                (w, h, r.pages.get(page).cloned().unwrap_or_default())
             }
             _ => read_exr_rgb(&path, "lightmap page", 1 << 16, 1 << 30)?,
         };
@@ -162,7 +175,11 @@ fn combined_page(
 
 /// The bake's probes with their SH the layers' weighted sum; `None` for a
 /// bake without probes.
-fn combined_probes(dir: &Path, layers: &[(String, Vec3, Value)]) -> Result<Option<Probes>> {
+fn combined_probes(
+    dir: &Path,
+    layers: &[(String, Vec3, Value)],
+    replace: Replacement,
+) -> Result<Option<Probes>> {
     if !dir.join("probes.json").is_file() {
         return Ok(None);
     }
@@ -194,9 +211,22 @@ fn combined_probes(dir: &Path, layers: &[(String, Vec3, Value)]) -> Result<Optio
         let f: Vec<f32> = (bin.chunks_exact(4))
             .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect();
-        for (acc, c) in sh.iter_mut().zip(f.chunks_exact(27)) {
+        let delta = replace
+            .filter(|r| r.layer == name)
+            .and_then(|r| r.probe_delta);
+        if delta.is_some_and(|d| d.len() != probes.len()) {
+            return Err(Error::Malformed {
+                path: dir.join("live.bin"),
+                message: format!(
+                    "its probes are not the bake's {} (probes.json)",
+                    probes.len()
+                ),
+            });
+        }
+        for (i, (acc, c)) in sh.iter_mut().zip(f.chunks_exact(27)).enumerate() {
             for (k, a) in acc.iter_mut().enumerate() {
-                *a += Vec3::new(c[3 * k], c[3 * k + 1], c[3 * k + 2]) * *w;
+                let d = delta.map_or(Vec3::ZERO, |d| d[i][k]);
+                *a += (Vec3::new(c[3 * k], c[3 * k + 1], c[3 * k + 2]) + d) * *w;
             }
         }
     }
@@ -222,7 +252,7 @@ fn recombine(
     let pages: Vec<Lightmaps> = (0..page_count)
         .map(|page| combined_page(dir, &layers, page, replace))
         .collect::<Result<_>>()?;
-    let probes = combined_probes(dir, &layers)?;
+    let probes = combined_probes(dir, &layers, replace)?;
     Ok((layers, pages, probes))
 }
 

@@ -5,13 +5,15 @@
 //!
 //! The pages are the bake at the new sun: every layer but `live` as baked
 //! (at its weight), the sky's layer × new sky / baked sky per channel, and
-//! the live layer from the run time's solution. The probes keep the live
-//! lights' bounce as baked (the run time does not re-solve probes).
+//! the live layer from the run time's solution. The live layer's probes
+//! are its baked ones moved by the run time's change since the baked sun
+//! ([`radbake_live::probes`]), where `live.bin` has the probes' rays.
 
-use super::combine::{combine_replacing, read_json, recombined_replacing};
+use super::combine::{combine_replacing, read_json, recombined_replacing, Replaced};
 use crate::error::{Error, Result};
 use crate::maps::lightmap::Lightmaps;
 use crate::probes::Probes;
+use crate::probes::Sh9;
 use glam::Vec3;
 use radbake_live::{Live, LiveData, Sun};
 use serde_json::json;
@@ -71,13 +73,32 @@ pub fn read_live(dir: &Path) -> Result<LiveData> {
     })
 }
 
-/// The live layer's pages for `r` (one Vec per page) and the solve's
-/// figures.
+/// The live layer relit: its pages (one Vec per page), the change of
+/// its probes (none without the probes' rays) and the solve's figures.
+pub struct LivePages {
+    pub pages: Vec<Vec<Vec3>>,
+    pub probe_delta: Option<Vec<Sh9>>,
+    pub relit: Relit,
+}
+
+impl LivePages {
+    /// As the layer to put in place of the live one's files.
+    fn replaced<'a>(&'a self, layer: &'a str, size: radbake_live::PageSize) -> Replaced<'a> {
+        Replaced {
+            layer,
+            size: [size.width, size.height],
+            pages: &self.pages,
+            probe_delta: self.probe_delta.as_deref(),
+        }
+    }
+}
+
+/// The live layer's pages and probes for `r` ([`LivePages`]).
 ///
 /// # Errors
 /// [`Error::Config`] for a sun direction of zero length or not finite, or
 /// a bake of several live lights (one sun is given).
-pub fn live_pages(data: LiveData, r: &Relight) -> Result<(Vec<Vec<Vec3>>, Relit)> {
+pub fn live_pages(data: LiveData, r: &Relight) -> Result<LivePages> {
     let h = &data.header;
     if h.lights.len() != 1 {
         return Err(Error::Config {
@@ -105,14 +126,22 @@ pub fn live_pages(data: LiveData, r: &Relight) -> Result<(Vec<Vec<Vec3>>, Relit)
     let pages = (live.pages().into_iter())
         .map(|p| p.into_iter().map(Vec3::from).collect())
         .collect();
+    let seconds = start.elapsed().as_secs_f64();
+    let probe_delta = live
+        .probe_delta()
+        .map(|d| d.iter().map(|sh| sh.map(Vec3::from)).collect());
     let relit = Relit {
         light,
         irradiance,
         iterations: solve.iterations,
         residual: solve.residual,
-        seconds: start.elapsed().as_secs_f64(),
+        seconds,
     };
-    Ok((pages, relit))
+    Ok(LivePages {
+        pages,
+        probe_delta,
+        relit,
+    })
 }
 
 /// Relights the live bake in `dir` for `r` into `out` (see the module
@@ -126,16 +155,21 @@ pub fn relight(dir: &Path, r: &Relight, out: &Path) -> Result<(Vec<PathBuf>, Rel
     let (data, weights) = prepare(dir, r)?;
     let layer = data.header.layer.clone();
     let size = data.header.pages[0];
-    let (pages, relit) = live_pages(data, r)?;
+    let live = live_pages(data, r)?;
+    let relit = live.relit.clone();
     let note = json!({
         "sun_direction": r.sun_direction.to_array(),
         "sun_irradiance": r.sun_irradiance.map(|s| s.to_array()),
         "sky": r.sky.map(|s| s.to_array()),
         "iterations": relit.iterations,
         "residual": relit.residual,
-        "probes": "the live lights' bounce in the probes is as baked",
+        "probes": if live.probe_delta.is_some() {
+            "the live layer's probes: as baked + the change of the patches' radiance since the baked sun, seen along the probes' rays"
+        } else {
+            "the live lights' bounce in the probes is as baked (the bake kept no probe rays)"
+        },
     });
-    let replace = Some((layer.as_str(), [size.width, size.height], &pages[..]));
+    let replace = Some(live.replaced(&layer, size));
     let written = combine_replacing(dir, &weights, replace, out, Some(("relit", note)))?;
     Ok((written, relit))
 }
@@ -150,10 +184,10 @@ pub fn relit(dir: &Path, r: &Relight) -> Result<(Vec<Lightmaps>, Option<Probes>,
     let (data, weights) = prepare(dir, r)?;
     let layer = data.header.layer.clone();
     let size = data.header.pages[0];
-    let (pages, relit) = live_pages(data, r)?;
-    let replace = Some((layer.as_str(), [size.width, size.height], &pages[..]));
+    let live = live_pages(data, r)?;
+    let replace = Some(live.replaced(&layer, size));
     let (pages, probes) = recombined_replacing(dir, &weights, replace)?;
-    Ok((pages, probes, relit))
+    Ok((pages, probes, live.relit))
 }
 
 /// The live data of the bake in `dir` and the other layers' weights for

@@ -7,7 +7,9 @@
 //! - how texels are made from patches: the first pass's interpolation
 //!   ([`lightmap::bilinear_weights`], the per-patch shift by area share) and
 //!   each texel's pixel, with the padding's copies
-//!   ([`lightmap::padding_sources`]).
+//!   ([`lightmap::padding_sources`]);
+//! - with probes, the patch each probe ray meets ([`probe_hits`]), for the
+//!   live layer's probes to follow the sun ([`radbake_live::probes`]).
 //!
 //! The live lights are baked in mode `indirect`, their bounced light in
 //! the layer [`LIVE_LAYER`], which the run time's solution replaces.
@@ -22,7 +24,10 @@ use crate::maps::lightmap;
 use crate::scene::layers::Layers;
 use crate::scene::Scene;
 use crate::surface::Surfaces;
-use radbake_live::format::{Matrix, TexelMap};
+use crate::probes::Probes;
+use crate::surface::Landing;
+use radbake_live::format::{Matrix, ProbeGrid, ProbeHeader, ProbeHits, TexelMap};
+use rayon::prelude::*;
 use radbake_live::{Header, LiveData, LiveLight, PageSize, SkyLayer};
 
 /// The scene's live lights (indices into [`Scene::lights`]).
@@ -70,7 +75,7 @@ pub fn check(scene: &Scene, config: &BakeConfig, shard: &super::shard::Sharding)
 pub fn build(
     s: &Surfaces,
     (config, sky, layers): (&BakeConfig, &Sky, &Layers),
-    light: &TexelLight,
+    (light, probes): (&TexelLight, Option<&Probes>),
     page_count: u32,
     log: &mut Log,
 ) -> Result<Option<LiveData>> {
@@ -102,6 +107,9 @@ pub fn build(
         })
         .collect();
     let texels = texel_map(s, page_count, 2 * config.padding);
+    let probes = probes
+        .filter(|p| config.live_probe_rays > 0 && !p.is_empty())
+        .map(|p| probe_hits(s, p, config.live_probe_rays));
     log.end("live");
     let p = s.patches.len() as u64;
     let header = Header {
@@ -138,6 +146,7 @@ pub fn build(
             })
             .collect(),
         sky: sky_layer(s.scene, sky, layers),
+        probes: probes.as_ref().map(|p| p.0.clone()),
     };
     Ok(Some(LiveData {
         header,
@@ -145,7 +154,45 @@ pub fn build(
         matrix,
         suns,
         texels,
+        probes: probes.map(|p| p.1),
     }))
+}
+
+/// The patch that each probe's rays meet: ray i along the Fibonacci
+/// direction i of `rays` (the same set for every probe, so the run time
+/// keeps one basis per ray), u32::MAX where it meets nothing, a back face
+/// or a surface without texels; none traced for an invalid probe (its
+/// light is filled from its neighbours').
+fn probe_hits(s: &Surfaces, probes: &Probes, rays: u32) -> (ProbeHeader, ProbeHits) {
+    let dirs: Vec<glam::Vec3> = (0..rays).map(|i| crate::probes::light::fibonacci(i, rays)).collect();
+    let hits: Vec<u32> = (0..probes.len())
+        .into_par_iter()
+        .flat_map_iter(|i| {
+            let p = probes.position(i);
+            let valid = probes.valid[i];
+            dirs.iter().map(move |&d| {
+                if !valid {
+                    return u32::MAX;
+                }
+                match s.trace(p, d).0 {
+                    Landing::Texel(t) => s.patches.of_texel[t as usize].0,
+                    _ => u32::MAX,
+                }
+            })
+        })
+        .collect();
+    let header = ProbeHeader {
+        count: probes.len() as u64,
+        rays,
+        grids: (probes.volumes.iter())
+            .map(|v| ProbeGrid {
+                first: v.first as u64,
+                resolution: v.resolution.to_array(),
+            })
+            .collect(),
+    };
+    let valid = probes.valid.clone();
+    (header, ProbeHits { valid, hits })
 }
 
 /// A live light's path directions: its node's, else the settings' (None:

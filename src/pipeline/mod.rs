@@ -195,11 +195,6 @@ pub fn bake_with<'s>(
 
     let shadowmask = shadowmask(&surfaces, atlas.page_count, &light.valid, config, &mut log);
 
-    let live = match &layers {
-        Some(l) => live::build(&surfaces, (config, &sky, l), &light, atlas.page_count, &mut log)?,
-        None => None,
-    };
-
     let probes = config.probes.then(|| {
         log.begin("probes", 0);
         let progress = log.progress();
@@ -229,6 +224,17 @@ pub fn bake_with<'s>(
     if let Some(p) = &probes {
         log.warnings.extend(probe_warnings(p));
     }
+
+    let live = match &layers {
+        Some(l) => live::build(
+            &surfaces,
+            (config, &sky, l),
+            (&light, probes.as_ref()),
+            atlas.page_count,
+            &mut log,
+        )?,
+        None => None,
+    };
 
     let sdf = (config.sdf > 0).then(|| {
         log.begin("sdf", 0);

@@ -96,7 +96,12 @@ impl LiveView {
         let zero = vec![vec![Vec3::ZERO; (size.0 * size.1) as usize]; h.pages.len()];
         let base_weights = crate::output::relight::weights(&data, &r)?;
         let layer = h.layer.clone();
-        let replace = Some((layer.as_str(), [size.0, size.1], &zero[..]));
+        let replace = Some(crate::output::combine::Replaced {
+            layer: &layer,
+            size: [size.0, size.1],
+            pages: &zero,
+            probe_delta: None,
+        });
         let (base, _) = crate::output::combine::recombined_replacing(dir, &base_weights, replace)?;
         let (elevation, azimuth) = angles(r.sun_direction);
         Ok(LiveView {

@@ -6,52 +6,29 @@
 
 use super::placement::Volume;
 use super::sh::Sh9;
-use glam::{IVec3, Vec3};
+use glam::Vec3;
+use radbake_live::format::ProbeGrid;
 
 /// Fills the invalid probes of `volume` (its slice of `sh` and `valid`).
 /// Returns how many could not be filled (a grid with no valid probe).
+/// The rings are [`radbake_live::probes::fill_plan`]'s, which the live
+/// probes' changes are filled by.
 pub fn fill(volume: &Volume, sh: &mut [Sh9], valid: &[bool]) -> usize {
-    let mut filled: Vec<bool> = valid.to_vec();
-    let r = volume.resolution.as_ivec3();
-    loop {
-        let mut next: Vec<(usize, Sh9)> = Vec::new();
-        for i in 0..sh.len() {
-            if filled[i] {
-                continue;
-            }
-            let c = volume.coords(i).as_ivec3();
-            let mut sum: Sh9 = [Vec3::ZERO; 9];
-            let mut n = 0u32;
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let q = c + IVec3::new(dx, dy, dz);
-                        if q == c || q.cmplt(IVec3::ZERO).any() || q.cmpge(r).any() {
-                            continue;
-                        }
-                        let j = volume.index(q.as_uvec3());
-                        if filled[j] {
-                            for (a, b) in sum.iter_mut().zip(&sh[j]) {
-                                *a += *b;
-                            }
-                            n += 1;
-                        }
-                    }
-                }
-            }
-            if n > 0 {
-                next.push((i, sum.map(|v| v / n as f32)));
+    let grid = ProbeGrid {
+        first: 0,
+        resolution: volume.resolution.to_array(),
+    };
+    let plan = radbake_live::probes::fill_plan(&[grid], valid);
+    radbake_live::probes::apply_fill(&plan, sh, |from| {
+        let mut sum: Sh9 = [Vec3::ZERO; 9];
+        for s in from {
+            for (a, b) in sum.iter_mut().zip(s) {
+                *a += *b;
             }
         }
-        if next.is_empty() {
-            break;
-        }
-        for (i, v) in next {
-            sh[i] = v;
-            filled[i] = true;
-        }
-    }
-    filled.iter().filter(|f| !**f).count()
+        sum.map(|v| v / from.len() as f32)
+    });
+    valid.iter().filter(|v| !**v).count() - plan.len()
 }
 
 #[cfg(test)]

@@ -62,15 +62,10 @@ pub struct ProbeSample {
     pub rays: u32,
 }
 
-/// Direction `i` of a spherical Fibonacci set of `n` (Keinert et al. 2015,
-/// "Spherical Fibonacci Mapping"): equal-area bands in z, golden-angle
-/// steps in φ.
+/// Direction `i` of a spherical Fibonacci set of `n` (Keinert et al. 2015;
+/// [`radbake_live::probes::fibonacci`], which the live probes share).
 pub fn fibonacci(i: u32, n: u32) -> Vec3 {
-    let golden = 0.618_034_f64; // φ − 1
-    let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
-    let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = 2.0 * std::f64::consts::PI * (i as f64 * golden).fract();
-    Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32)
+    Vec3::from(radbake_live::probes::fibonacci(i, n))
 }
 
 /// A uniformly random rotation (Shoemake 1992, "Uniform random rotations").

@@ -11,21 +11,11 @@ use glam::Vec3;
 /// Y₂₁ (xz), Y₂₂ (x² − y²).
 pub type Sh9 = [Vec3; 9];
 
-/// The nine basis functions at unit direction `d`.
+/// The nine basis functions at unit direction `d` (the runtime's
+/// [`radbake_live::probes::basis`], which the live probes share).
 #[inline]
 pub fn basis(d: Vec3) -> [f32; 9] {
-    let (x, y, z) = (d.x, d.y, d.z);
-    [
-        0.282_095,
-        0.488_603 * y,
-        0.488_603 * z,
-        0.488_603 * x,
-        1.092_548 * x * y,
-        1.092_548 * y * z,
-        0.315_392 * (3.0 * z * z - 1.0),
-        1.092_548 * x * z,
-        0.546_274 * (x * x - y * y),
-    ]
+    radbake_live::probes::basis(d.to_array())
 }
 
 /// Band of each coefficient.
