@@ -635,6 +635,28 @@ fn three_js_live_runtime_matches_relight() {
     );
     assert!(diff / sum <= 1e-3, "Σ|Δ| / Σ|relight| {}", diff / sum);
     assert!(worst <= 1e-2 * mean, "worst {worst} of the mean {mean}");
+    // The probes: the live layer's moved by the JS probeDelta, against
+    // relight's probes.bin (moved by the Rust one); both away from the
+    // bake's, so the comparison can fail.
+    let floats = |p: &Path| -> Vec<f32> {
+        (std::fs::read(p).unwrap().chunks_exact(4))
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    };
+    let three = floats(&dump.with_extension("f32.probes"));
+    let ours = floats(&relit.join("probes.bin"));
+    let baked = floats(&bake.join("probes.bin"));
+    assert_eq!(three.len(), ours.len());
+    let l1 = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f32>();
+    let size: f32 = ours.iter().map(|x| x.abs()).sum();
+    let (off, moved) = (l1(&three, &ours) / size, l1(&baked, &ours) / size);
+    eprintln!(
+        "three.js probes / relight's: Σ|Δ| / Σ|relight| {off:.2e} over {} probes (relight's differ from the bake's by {moved:.2e}; the probe change took {:.1} ms)",
+        ours.len() / 27,
+        report["probes"].as_f64().unwrap_or(f64::NAN)
+    );
+    assert!(moved > 1e-2, "relight's probes did not move: {moved}");
+    assert!(off <= 1e-3, "three.js probes off relight's by {off}");
 }
 
 /// The viewer page with `sun=` (and `sky=`, `sun_irradiance=`) solves a

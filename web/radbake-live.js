@@ -22,7 +22,7 @@
 /** The file's first bytes: "RBLIVE\r\n". */
 const MAGIC = [0x52, 0x42, 0x4c, 0x49, 0x56, 0x45, 0x0d, 0x0a];
 /** The format version read here (live/src/format.rs `VERSION`). */
-export const LIVE_VERSION = 1;
+export const LIVE_VERSION = 2;
 /** Largest patch or texel count accepted (2²⁸), as the Rust reader. */
 const MAX_COUNT = 2 ** 28;
 /** A texel's missing corner patch (u32::MAX). */
@@ -96,6 +96,8 @@ function sections(h) {
     ["texels' pixels", 4, h.texels],
     ["texels' pages", 2, h.texels],
     ['padding', 5, padding],
+    ["probes' validity", 1, h.probes ? h.probes.count : 0],
+    ["probes' ray hits", 4, h.probes ? h.probes.count * h.probes.rays : 0],
   ];
 }
 
@@ -114,7 +116,7 @@ const isVec3 = (v) => Array.isArray(v) && v.length === 3 && v.every((x) => typeo
  */
 function headerProblem(h) {
   if (!h || typeof h !== 'object' || Array.isArray(h)) return 'header: not a JSON object';
-  const fields = ['version', 'patches', 'texels', 'entries', 'block', 'grid', 'pages', 'padding', 'tolerance', 'max_iterations', 'layer', 'lights', 'sky'];
+  const fields = ['version', 'patches', 'texels', 'entries', 'block', 'grid', 'pages', 'padding', 'tolerance', 'max_iterations', 'layer', 'lights', 'sky', 'probes'];
   const unknown = Object.keys(h).find((k) => !fields.includes(k));
   if (unknown) return `header: unknown field \`${unknown}\``;
   for (const k of ['version', 'patches', 'texels', 'entries', 'block', 'grid', 'max_iterations']) {
@@ -130,6 +132,13 @@ function headerProblem(h) {
     if (l.path != null && !Array.isArray(l.path)) return 'header: a live light\'s `path` is not a list';
   }
   if (h.sky != null && (typeof h.sky.layer !== 'string' || !Array.isArray(h.sky.radiance))) return 'header: `sky` is not { layer, radiance }';
+  if (h.probes != null) {
+    const q = h.probes;
+    const gridOk = (g) => g && isCount(g.first) && Array.isArray(g.resolution) && g.resolution.length === 3 && g.resolution.every(isCount);
+    if (typeof q !== 'object' || !isCount(q.count) || !isCount(q.rays) || !Array.isArray(q.grids) || !q.grids.every(gridOk)) {
+      return 'header: `probes` is not { count, rays, grids: [{ first, resolution }] }';
+    }
+  }
   // check_header's ranges.
   if (h.patches > MAX_COUNT || h.texels > MAX_COUNT || h.padding.some((n) => n > 2 ** 30)) return 'patch, texel or padding count out of range';
   if (h.entries > 0xffffffff) return "F's entry count out of range";
@@ -144,6 +153,18 @@ function headerProblem(h) {
   if (!h.pages.length || h.pages.length > 0xffff || !h.pages.every(pageOk)) return 'no pages, or a page size out of range';
   if (h.padding.length !== h.pages.length) return 'the padding counts do not match the pages';
   if (h.sky != null && !isVec3(h.sky.radiance)) return "the sky layer's radiance is not three finite numbers";
+  if (h.lights.some((l) => l.direction.every((x) => x === 0))) return "a live light's direction is of zero length";
+  if (h.probes != null) {
+    const q = h.probes;
+    if (q.count > MAX_COUNT || q.rays < 1 || q.rays > 4096) return 'probe count or rays per probe out of range';
+    let next = 0;
+    for (const g of q.grids) {
+      const n = g.resolution[0] * g.resolution[1] * g.resolution[2];
+      if (g.first !== next || n === 0 || n > MAX_COUNT) return 'the probe grids do not cover the probes in order';
+      next += n;
+    }
+    if (next !== q.count) return `the probe grids hold ${next} probes, the header says ${q.count}`;
+  }
   return null;
 }
 
@@ -190,6 +211,7 @@ export function parseRadbakeLive(buffer, name = 'live.bin') {
   const problem = headerProblem(header);
   if (problem) fail(problem);
   header.sky = header.sky ?? null;
+  header.probes = header.probes ?? null;
   for (const l of header.lights) l.path = l.path ?? null;
   const crc = u32('checksum');
   const parts = sections(header);
@@ -206,7 +228,7 @@ export function parseRadbakeLive(buffer, name = 'live.bin') {
         break;
       }
     }
-    fail(`body is ${bodyLen} bytes, the header's counts give ${want} (${bodyLen < want ? `truncated in its ${where}` : 'padded after its padding'})`);
+    fail(`body is ${bodyLen} bytes, the header's counts give ${want} (${bodyLen < want ? `truncated in its ${where}` : 'padded after its last section'})`);
   }
   const raw = bytes.subarray(at);
   if (crc32(raw) !== crc) fail('checksum mismatch: the file is corrupted');
@@ -259,6 +281,12 @@ export function parseRadbakeLive(buffer, name = 'live.bin') {
     }
     return { pixel: pixels, neighbour };
   });
+  let probes = null;
+  if (h.probes) {
+    const s = section(1, h.probes.count);
+    const valid = body.subarray(s, s + h.probes.count);
+    probes = { valid, hits: u32s(h.probes.count * h.probes.rays) };
+  }
 
   // check_body: every index within its range, every value finite.
   for (let i = 0; i < albedo.length; i++) {
@@ -307,7 +335,13 @@ export function parseRadbakeLive(buffer, name = 'live.bin') {
       if (i >= sizes[pg] || n > 8 || x < 0 || x >= w || y < 0 || y >= hgt) fail('a padding pixel or its neighbour out of its page');
     }
   });
-  return { name, header, albedo, rows, cols, vals, suns, patch, share, corners, pixel, page, padding };
+  if (probes) {
+    const hits = probes.hits;
+    for (let k = 0; k < hits.length; k++) {
+      if (hits[k] !== NONE && hits[k] >= P) fail("a probe ray's patch out of range");
+    }
+  }
+  return { name, header, albedo, rows, cols, vals, suns, patch, share, corners, pixel, page, padding, probes };
 }
 
 // The sun directions (live/src/directions.rs): a grid × grid
@@ -672,4 +706,119 @@ export class RadbakeLive {
       }
     }
   }
+
+  /**
+   * Per probe, the change of the live layer's radiance SH since the baked
+   * suns (live/src/probes.rs, `Live::probe_delta`): (4π / n) Σᵢ ΔL(patch
+   * hit by ray i) Y(ωᵢ) over the probe's rays, ΔL the patches' outgoing
+   * radiance now less at the baked suns, filled into the invalid probes
+   * as the bake fills them. A Float32Array of 27 per probe (nine RGB
+   * coefficients, as `probes.bin`), or null for a file without the probes'
+   * rays. The first call solves once at the baked suns, from zero.
+   */
+  probeDelta() {
+    const probes = this.data.probes;
+    const q = this.header.probes;
+    if (!probes || !q) return null;
+    if (!this.baked) {
+      const kept = [this.direct.slice(), this.radiance.slice(), this.indirect.slice()];
+      this.radiance.fill(0);
+      this.setSuns(this.lights.map((l) => ({ direction: l.direction, irradiance: l.irradiance })));
+      this.solve(this.header.max_iterations);
+      this.baked = this.radiance.slice();
+      [this.direct, this.radiance, this.indirect] = kept;
+      this.probeBasis = weightedBasis(q.rays);
+      this.probeFill = fillPlan(q.grids, probes.valid);
+    }
+    const dl = new Float32Array(this.radiance.length);
+    for (let i = 0; i < dl.length; i++) dl[i] = this.radiance[i] - this.baked[i];
+    const n = q.rays;
+    const y = this.probeBasis;
+    const out = new Float32Array(27 * q.count);
+    for (let p = 0; p < q.count; p++) {
+      if (!probes.valid[p]) continue;
+      const o = 27 * p;
+      for (let i = 0; i < n; i++) {
+        const hit = probes.hits[p * n + i];
+        if (hit === NONE) continue;
+        const r = dl[3 * hit];
+        const g = dl[3 * hit + 1];
+        const b = dl[3 * hit + 2];
+        for (let k = 0; k < 9; k++) {
+          const w = y[9 * i + k];
+          out[o + 3 * k] += r * w;
+          out[o + 3 * k + 1] += g * w;
+          out[o + 3 * k + 2] += b * w;
+        }
+      }
+    }
+    for (const [p, from] of this.probeFill) {
+      for (let c = 0; c < 27; c++) {
+        let sum = 0;
+        for (const j of from) sum += out[27 * j + c];
+        out[27 * p + c] = sum / from.length;
+      }
+    }
+    return out;
+  }
+}
+
+/** Direction i of a spherical Fibonacci set of n (live/src/probes.rs `fibonacci`). */
+export function fibonacci(i, n) {
+  const golden = 0.618034;
+  const z = 1 - (2 * i + 1) / n;
+  const r = Math.sqrt(Math.max(1 - z * z, 0));
+  const phi = 2 * Math.PI * ((i * golden) % 1);
+  return [r * Math.cos(phi), r * Math.sin(phi), z];
+}
+
+/** The nine real SH basis functions at unit d, three.js's order and normalisation. */
+export function shBasis([x, y, z]) {
+  return [0.282095, 0.488603 * y, 0.488603 * z, 0.488603 * x, 1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3 * z * z - 1), 1.092548 * x * z, 0.546274 * (x * x - y * y)];
+}
+
+/** Per ray of an n-ray Fibonacci set, its basis × 4π / n: a Float32Array of 9 per ray. */
+function weightedBasis(n) {
+  const out = new Float32Array(9 * n);
+  const w = (4 * Math.PI) / n;
+  for (let i = 0; i < n; i++) shBasis(fibonacci(i, n)).forEach((v, k) => (out[9 * i + k] = v * w));
+  return out;
+}
+
+/**
+ * The invalid probes' fill (live/src/probes.rs `fill_plan`): ring by
+ * ring, each unfilled probe with filled neighbours among its 26 takes
+ * their mean. A list of [probe, [sources]] in the order to apply.
+ */
+export function fillPlan(grids, valid) {
+  const plan = [];
+  for (const { first, resolution: [rx, ry, rz] } of grids) {
+    const n = rx * ry * rz;
+    const filled = Array.from({ length: n }, (_, i) => valid[first + i] !== 0);
+    const index = (x, y, z) => x + rx * (y + ry * z);
+    for (;;) {
+      const ring = [];
+      for (let i = 0; i < n; i++) {
+        if (filled[i]) continue;
+        const x = i % rx;
+        const y = Math.floor(i / rx) % ry;
+        const z = Math.floor(i / (rx * ry));
+        const from = [];
+        for (let dz = -1; dz <= 1; dz++) {
+          for (let dy = -1; dy <= 1; dy++) {
+            for (let dx = -1; dx <= 1; dx++) {
+              const [qx, qy, qz] = [x + dx, y + dy, z + dz];
+              const inside = qx >= 0 && qx < rx && qy >= 0 && qy < ry && qz >= 0 && qz < rz;
+              if ((dx || dy || dz) && inside && filled[index(qx, qy, qz)]) from.push(first + index(qx, qy, qz));
+            }
+          }
+        }
+        if (from.length) ring.push([first + i, from]);
+      }
+      if (!ring.length) break;
+      for (const [i] of ring) filled[i - first] = true;
+      plan.push(...ring);
+    }
+  }
+  return plan;
 }

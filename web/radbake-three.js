@@ -399,8 +399,8 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
 
   /**
    * Writes Σₖ wₖ × layer k into every page, and with `all` the layers'
-   * emission and the probes too (a replaced layer's new pages change
-   * neither: its probes stay as baked).
+   * emission and the probes too; a replaced layer with a probe change
+   * rewrites the probes at every refresh.
    */
   function recombine(all = true) {
     if (!names.length) return;
@@ -431,13 +431,18 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
         const [r, g, b] = w[layer];
         material.emissive.setRGB(emissive.r * r, emissive.g * g, emissive.b * b);
       }
-      if (probes) {
-        const out = probes.floats;
-        for (let i = 0; i < out.length; i++) {
-          let v = 0;
-          for (let k = 0; k < layerProbes.length; k++) v += w[k][i % 3] * layerProbes[k][i];
-          out[i] = v;
-        }
+    }
+    // The probes: every layer's at its weight, the replaced layer's moved
+    // by its change (a live sun's, `refresh(delta)`).
+    const delta = replacedLayer && replacedLayer.probeDelta;
+    if (probes && (all || delta)) {
+      const out = probes.floats;
+      const r = delta ? replacedLayer.k : -1;
+      for (let i = 0; i < out.length; i++) {
+        let v = 0;
+        for (let k = 0; k < layerProbes.length; k++) v += w[k][i % 3] * layerProbes[k][i];
+        if (delta) v += w[r][i % 3] * delta[i];
+        out[i] = v;
       }
     }
     cost.ms = performance.now() - started;
@@ -447,11 +452,12 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
   /**
    * Layer `name`'s pages become `pages` (per page index, `{ width,
    * height, rgb }` with rgb packed linear RGB as the EXR pages: kept by
-   * reference), recombined at once; its probes stay as baked. With `why`,
-   * a weight for it is an error saying so. Returns `refresh()`, which
-   * recombines the pages after `pages` changed in place: the other layers'
-   * weighted sum is kept between weight changes, so a refresh costs one
-   * add per texel and the half-float conversion.
+   * reference), recombined at once. With `why`, a weight for it is an
+   * error saying so. Returns `refresh(probeDelta)`, which recombines the
+   * pages after `pages` changed in place: the other layers' weighted sum
+   * is kept between weight changes, so a refresh costs one add per texel
+   * and the half-float conversion. `probeDelta` (27 floats per probe, as
+   * `probes.bin`; null: none) is added to the layer's probes as baked.
    */
   function replaceLayer(name, pages, why = null) {
     const k = names.indexOf(known(name));
@@ -464,9 +470,15 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
     }
     for (const [page] of combined) layerPages[k].set(page, { url: `${name} (run time)`, ...pages[page] });
     const fixed = new Map([...combined].map(([page, { sum }]) => [page, new Float32Array(sum.length)]));
-    replacedLayer = { k, name, why, fixed, stale: true };
+    replacedLayer = { k, name, why, fixed, stale: true, probeDelta: null };
     recombine();
-    return () => recombine(false);
+    return (probeDelta = null) => {
+      if (probeDelta && probes && probeDelta.length !== probes.floats.length) {
+        throw new Error(`light layer ${name}: a probe change of ${probeDelta.length / 27} probes, the bake has ${probes.count}`);
+      }
+      replacedLayer.probeDelta = probes ? probeDelta : null;
+      recombine(false);
+    };
   }
 
   /** `name`, or an error naming it and the bake's layers. */
@@ -496,6 +508,7 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
     setLayerWeight: (name, value) => setLayerWeights({ [name]: value }),
     setLayerWeights,
     replaceLayer,
+    probes,
     page: (index) => {
       const c = combined.get(index);
       if (!c) throw new Error(`no lightmap page ${index} (this bake's: ${[...combined.keys()].join(', ') || 'none'})`);
@@ -515,7 +528,9 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
  * relight`) and puts its pages in place of the live layer's: the lightmap
  * becomes Σ_{k ≠ live} wₖ × layer k + the live pages, the other layers at
  * their weights, the sky's layer × new sky / baked sky per channel
- * (`sky`, setSky). The probes keep the live light's bounce as baked.
+ * (`sky`, setSky). With the bake's probes given to loadRadbakeLayers and
+ * the probes' rays in `live.bin`, the live layer's probes move too: as
+ * baked + the runtime's `probeDelta()`.
  *
  * Returns `{ light, lights, runtime, sun(), sky(), setSun(direction,
  * irradiance), setSuns(list), setSky(rgb), cost }`: `light` the live
@@ -527,10 +542,10 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
  * b] W/m², left out: unchanged, at first as baked), solves from the last
  * solution and rewrites the pages; `setSuns` takes one `{ direction,
  * irradiance }` per live light; `setSky` the sky's radiance [r, g, b].
- * `cost` is `{ ms, iterations, residual, solve, pages, lightmap }` of the
- * last update (ms: the whole; solve: D and the Jacobi iterations; pages:
- * the texels and the live pages; lightmap: the recombination into the
- * half-float pages). A zero-length or NaN direction, a bad irradiance or
+ * `cost` is `{ ms, iterations, residual, solve, pages, lightmap, probes }`
+ * of the last update (ms: the whole; solve: D and the Jacobi iterations;
+ * pages: the texels and the live pages; lightmap: the recombination into
+ * the half-float pages, and the probes'; probes: their change). A zero-length or NaN direction, a bad irradiance or
  * sky is an error naming it and changes nothing.
  */
 export async function loadRadbakeLive(manifestUrl, layers, { sun = null, sky = null } = {}) {
@@ -549,7 +564,7 @@ export async function loadRadbakeLive(manifestUrl, layers, { sun = null, sky = n
   }
   const suns = h.lights.map((l) => ({ direction: [...l.direction], irradiance: [...l.irradiance] }));
   let skyNow = h.sky ? [...h.sky.radiance] : null;
-  const cost = { ms: 0, iterations: 0, residual: 0, solve: 0, pages: 0, lightmap: 0 };
+  const cost = { ms: 0, iterations: 0, residual: 0, solve: 0, pages: 0, lightmap: 0, probes: 0 };
   let refresh = null;
 
   /** Solves for `list` (one { direction, irradiance? } per live light) and recombines. */
@@ -563,15 +578,19 @@ export async function loadRadbakeLive(manifestUrl, layers, { sun = null, sky = n
     next.forEach((s, i) => {
       suns[i] = { direction: [...s.direction], irradiance: [...s.irradiance] };
     });
-    if (refresh) refresh();
-    else refresh = layers.replaceLayer(h.layer, runtime.pages, "it is re-solved for the sun: give the sun's irradiance instead (setSun)");
+    if (!refresh) refresh = layers.replaceLayer(h.layer, runtime.pages, "it is re-solved for the sun: give the sun's irradiance instead (setSun)");
+    const t = performance.now();
+    const delta = layers.probes ? runtime.probeDelta() : null;
+    const probesMs = performance.now() - t;
+    refresh(delta);
     Object.assign(cost, {
-      ms: solved.ms + layers.cost.ms,
+      ms: solved.ms + probesMs + layers.cost.ms,
       iterations: solved.iterations,
       residual: solved.residual,
       solve: solved.solveMs,
       pages: solved.pagesMs,
       lightmap: layers.cost.ms,
+      probes: probesMs,
     });
     return { ...cost };
   }

@@ -2,7 +2,8 @@
 //! path (or across the grid) one sample at a time, each update warm-started
 //! from the last, as an engine moves it frame by frame. Prints the median
 //! and worst time per update and its parts (direct light + solve, texels,
-//! pages), and the iterations.
+//! pages, and the probes' change where the file has the probes' rays),
+//! and the iterations.
 //!
 //!     cargo run --release -p radbake-live --example bench -- <bake dir>/live.bin [steps]
 
@@ -36,7 +37,11 @@ fn main() {
         irradiance: light.irradiance,
     };
     live.update(&[sun(dirs.len() / 4)]).unwrap();
-    let mut times: Vec<[f64; 4]> = Vec::new();
+    // The baked suns' solve, made once at the first probe update.
+    let t = Instant::now();
+    let probes = live.probe_delta().map(|d| d.len());
+    let first_probes = t.elapsed().as_secs_f64() * 1e3;
+    let mut times: Vec<[f64; 5]> = Vec::new();
     let mut pages = Vec::new();
     let mut iterations = Vec::new();
     for s in 0..steps {
@@ -48,10 +53,12 @@ fn main() {
         let t2 = Instant::now();
         live.write_pages(&mut pages);
         let t3 = Instant::now();
-        std::hint::black_box((texels, &pages));
+        let delta = live.probe_delta();
+        let t4 = Instant::now();
+        std::hint::black_box((texels, &pages, delta));
         let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
         // An engine needs the texels' page once: solve + pages (pages reads the texels).
-        times.push([ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t0, t1) + ms(t2, t3)]);
+        times.push([ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t0, t1) + ms(t2, t3), ms(t3, t4)]);
         iterations.push(solve.iterations);
     }
     let median = |c: usize| {
@@ -73,4 +80,12 @@ fn main() {
         median(0).0, median(0).1, iterations[0], iterations[iterations.len() - 1], iterations[iterations.len() / 2],
         median(1).0, median(1).1, median(2).0, median(2).1, median(3).0, median(3).1
     );
+    if let (Some(n), Some(q)) = (probes, &h.probes) {
+        println!(
+            "probes: {n} × {} rays; their change {:.1} / {:.1} ms per update, the first (with the baked suns' solve) {first_probes:.0} ms",
+            q.rays,
+            median(4).0,
+            median(4).1
+        );
+    }
 }

@@ -202,7 +202,8 @@ fn sources(manifest: &RadbakeManifest, images: &Assets<Image>) -> Option<Result<
 }
 
 /// Σₖ wₖ × layer k into a copy of `template`, RGB9E5; with `live`, layer
-/// `live.0`'s texels are `live.1` (weight 1).
+/// `live.0`'s texels are `live.1` (weight 1: its pages, or its volumes
+/// moved by the probes' change).
 fn weighted(
     template: &Image,
     per_layer: &[Vec<Vec3>],
@@ -449,10 +450,20 @@ fn start(
         let pages = (sources.pages.iter().enumerate())
             .map(|(i, (t, l))| weighted(t, l, &w, replaced(i)))
             .collect();
-        let volumes = sources
-            .volumes
-            .iter()
-            .map(|(t, l)| weighted(t, l, &w, None))
+        // The live layer's volumes: as baked + the probes' change.
+        let moved_volume = |i: usize| -> Option<(usize, Vec<[f32; 3]>)> {
+            let (s, k) = solved.as_ref().filter(|(s, _)| s.result.is_ok())?;
+            let delta = s.volumes.as_ref()?.get(i)?;
+            let baked = sources.volumes.get(i)?.1.get(*k)?;
+            // The grids match the volumes (checked at load).
+            let sum = baked.iter().zip(delta);
+            Some((*k, sum.map(|(b, d)| (*b + Vec3::from(*d)).max(Vec3::ZERO).to_array()).collect()))
+        };
+        let volumes = (sources.volumes.iter().enumerate())
+            .map(|(i, (t, l))| {
+                let moved = moved_volume(i);
+                weighted(t, l, &w, moved.as_ref().map(|(k, v)| (*k, &v[..])))
+            })
             .collect();
         Recombined {
             weights,

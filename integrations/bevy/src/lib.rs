@@ -244,6 +244,8 @@ struct ProbesFile {
 
 #[derive(Deserialize)]
 struct VolumeFile {
+    #[serde(default)]
+    resolution: Option<[u32; 3]>,
     translation: [f32; 3],
     rotation_xyzw: [f32; 4],
     scale: [f32; 3],
@@ -313,7 +315,9 @@ impl AssetLoader for ManifestLoader {
             )));
         }
         let mut volumes = Vec::new();
+        let mut resolutions = Vec::new();
         for v in file.probes.map(|p| p.volumes).unwrap_or_default() {
+            resolutions.push(v.resolution);
             volumes.push(Volume {
                 voxels: load_context.load(relative(&v.bevy_irradiance_volume)?),
                 transform: Transform {
@@ -379,6 +383,16 @@ impl AssetLoader for ManifestLoader {
                     return Err(fail(format!(
                         "{at}: its layer `{layer}` is not among the bake's layers"
                     )));
+                }
+                if let Some(q) = &data.header.probes {
+                    let same = q.grids.len() == resolutions.len()
+                        && (q.grids.iter().zip(&resolutions))
+                            .all(|(g, r)| r.is_none_or(|r| r == g.resolution));
+                    if !same {
+                        return Err(fail(format!(
+                            "{at}: its probe grids are not the bake's irradiance volumes (probes.json)"
+                        )));
+                    }
                 }
                 Some(std::sync::Arc::new(data))
             }

@@ -18,8 +18,11 @@
 //!   `live.bin`) × the light's linear colour × illuminance over what they
 //!   were when the bake was applied, per channel; an untouched light gives
 //!   the baked irradiance exactly.
-//! - The irradiance volumes keep the live light's bounce as baked (the run
-//!   time re-solves the lightmap only).
+//! - The irradiance volumes follow too, where `live.bin` has the probes'
+//!   rays: the live layer's volumes become the baked ones + the ambient
+//!   cubes of [`radbake_live::Live::probe_delta`] (the change of the live
+//!   layer's probe SH since the baked sun, from the patches the probes
+//!   see); without them the volumes keep the live light's bounce as baked.
 //! - The sky's colour: weigh its layer (`sky`, a [`crate::RadbakeLayers`]
 //!   weight = new sky / baked sky per channel). A weight on the live layer
 //!   itself is refused: turn or dim the light instead.
@@ -137,6 +140,9 @@ pub(crate) struct Solved {
     pub solver: Box<Live>,
     pub sun: Sun,
     pub pages: Vec<Vec<[f32; 3]>>,
+    /// Per probe grid, the change of the live layer's volume texels (in
+    /// the volume image's layout); `None` without the probes' rays.
+    pub volumes: Option<Vec<Vec<[f32; 3]>>>,
     pub result: Result<Solve, String>,
     pub ms: f32,
 }
@@ -148,14 +154,46 @@ pub(crate) fn solve(mut solver: Box<Live>, sun: Sun, mut pages: Vec<Vec<[f32; 3]
     let result = solver
         .update(&[sun])
         .map_err(|e| format!("radbake: live sun: {e}"));
+    let mut volumes = None;
     if result.is_ok() {
         solver.write_pages(&mut pages);
+        volumes = volume_deltas(&mut solver);
     }
     Solved {
         solver,
         sun,
         pages,
+        volumes,
         result,
         ms: t.elapsed().as_secs_f32() * 1e3,
     }
+}
+
+/// Per probe grid, the ambient cubes of the live layer's probe change
+/// ([`Live::probe_delta`]) in Bevy 0.19's irradiance-volume layout (as
+/// radbake writes `probes_<k>.ktx2`): size (Rx, 2·Ry, 3·Rz), face
+/// 2·axis + negative at texel (x, y + Ry·negative, z + Rz·axis).
+fn volume_deltas(solver: &mut Live) -> Option<Vec<Vec<[f32; 3]>>> {
+    let delta = solver.probe_delta()?;
+    let grids = solver.data().header.probes.as_ref()?.grids.clone();
+    let volumes = grids
+        .iter()
+        .map(|g| {
+            let [rx, ry, rz] = g.resolution.map(|r| r as usize);
+            let (sx, sy) = (rx, 2 * ry);
+            let mut texels = vec![[0.0f32; 3]; sx * sy * 3 * rz];
+            for i in 0..rx * ry * rz {
+                let (x, y, z) = (i % rx, (i / rx) % ry, i / (rx * ry));
+                let cube = radbake_live::probes::ambient_cube(&delta[g.first as usize + i]);
+                for axis in 0..3 {
+                    for neg in 0..2 {
+                        let at = x + sx * ((y + ry * neg) + sy * (z + rz * axis));
+                        texels[at] = cube[2 * axis + neg];
+                    }
+                }
+            }
+            texels
+        })
+        .collect();
+    Some(volumes)
 }
