@@ -882,6 +882,27 @@ struct LiveRun {
     /// application, and the median before it.
     around: Vec<f64>,
     before: f64,
+    /// The irradiance volumes' texels at the last shot (decoded RGB9E5).
+    volumes: Vec<Vec<Vec3>>,
+}
+
+/// The texels of every `IrradianceVolume`'s image in `world`.
+fn volume_texels(world: &mut World) -> Vec<Vec<Vec3>> {
+    let handles: Vec<Handle<Image>> = world
+        .query::<&bevy::light::IrradianceVolume>()
+        .iter(world)
+        .map(|v| v.voxels.clone())
+        .collect();
+    let images = world.resource::<Assets<Image>>();
+    handles
+        .iter()
+        .map(|h| {
+            let data = images.get(h).and_then(|i| i.data.clone()).unwrap_or_default();
+            (data.chunks_exact(4))
+                .map(|c| bevy_radbake::layers::rgb9e5_to_rgb(u32::from_le_bytes(c.try_into().unwrap())))
+                .collect()
+        })
+        .collect()
 }
 
 fn run_bevy_live(dir: &Path, turn: Quat) -> LiveRun {
@@ -965,6 +986,7 @@ fn run_bevy_live(dir: &Path, turn: Quat) -> LiveRun {
         solves,
         around: times[c..].to_vec(),
         before: before[before.len() / 2],
+        volumes: volume_texels(app.world_mut()),
     }
 }
 
@@ -1032,4 +1054,32 @@ fn live_sun_turns_as_the_preview_does() {
         (change - 1.0).abs() > 0.01,
         "the turn changed nothing: {change}"
     );
+    // The irradiance volumes follow the sun: Bevy's against the ambient
+    // cubes of relight's probes at the turned sun, and away from the bake's.
+    let relit = dir.join("relit");
+    let r = radbake::output::relight::Relight {
+        sun_direction: glam::Vec3::from_array(turned.to_array()),
+        sun_irradiance: None,
+        sky: None,
+        weights: Vec::new(),
+    };
+    radbake::output::relight::relight(&dir, &r, &relit).unwrap();
+    let cubes = |d: &Path| -> Vec<Vec3> {
+        let probes = radbake::probes::Probes::read(&d.join("probes.json")).unwrap();
+        let (_, texels) = radbake::output::probes::volume_texels(&probes, 0);
+        texels.into_iter().map(bevy_radbake::layers::rgb9e5_to_rgb).collect()
+    };
+    let (want, baked) = (cubes(&relit), cubes(&dir));
+    let bevy = &run.volumes[0];
+    assert_eq!(bevy.len(), want.len());
+    let l1 = |a: &[Vec3], b: &[Vec3]| -> f32 {
+        a.iter().zip(b).map(|(x, y)| (*x - *y).abs().element_sum()).sum::<f32>()
+            / b.iter().map(|y| y.element_sum()).sum::<f32>()
+    };
+    let (off, moved) = (l1(bevy, &want), l1(&baked, &want));
+    eprintln!(
+        "irradiance volume: Bevy / relight's Σ|Δ| / Σ {off:.2e}; relight's / the bake's {moved:.2e}"
+    );
+    assert!(moved > 0.02, "the turn did not move the probes: {moved}");
+    assert!(off < 0.01, "Bevy's volume off relight's by {off}");
 }
