@@ -11,7 +11,10 @@
 //! final gather costs); *interpolation*, the relit one against the patch
 //! solution at the exact visibility (what the sun table's directions and
 //! bytes cost). Also the texel RMSE (over valid texels, % of the mean
-//! texel) and the update's time.
+//! texel) and the update's time. And the probes: the live layer's moved
+//! by the run time's change ([`Live::probe_delta`]) against the full
+//! bake's, as Σ|ΔE| / ΣE over the valid probes' six axis irradiances,
+//! beside the bake's probes as they were.
 //!
 //! With `sun_path = {latitude, day}` the tables are made along that day's
 //! path (256 samples) and the suns are three midpoints between samples
@@ -127,6 +130,36 @@ fn main() -> anyhow::Result<()> {
                 })
                 .collect()
         };
+        if let (Some(delta), Some(bp), Some(fp)) = (live.probe_delta(), &bake.probes, &full.probes)
+        {
+            let relit: Vec<radbake::probes::Sh9> = (bp.sh.iter().zip(&delta))
+                .map(|(b, d)| std::array::from_fn(|i| b[i] + Vec3::from(d[i])))
+                .collect();
+            let cubes = |sh: &[radbake::probes::Sh9]| -> Vec<Vec3> {
+                (sh.iter().zip(&bp.valid))
+                    .filter(|(_, v)| **v)
+                    .flat_map(|(s, _)| {
+                        radbake::probes::sh::AXES
+                            .map(|n| radbake::probes::sh::irradiance_over_pi(s, n))
+                    })
+                    .collect()
+            };
+            let want = cubes(&fp.sh);
+            let rel = |a: &[Vec3]| {
+                let num: f32 = a
+                    .iter()
+                    .zip(&want)
+                    .map(|(x, y)| (*x - *y).abs().element_sum())
+                    .sum();
+                num / want.iter().map(|y| y.abs().element_sum()).sum::<f32>()
+            };
+            println!(
+                "probes at {elev:.1}°, {azim:.1}°: relit {:.2} % off the full bake, as baked {:.2} % ({} valid)",
+                100.0 * rel(&cubes(&relit)),
+                100.0 * rel(&cubes(&bp.sh)),
+                want.len() / 6
+            );
+        }
         let relit = with(&relit_live);
         let exact = with(&exact_live);
         let reference = &full.maps.lightmaps.texel_values;

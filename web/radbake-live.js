@@ -98,6 +98,7 @@ function sections(h) {
     ['padding', 5, padding],
     ["probes' validity", 1, h.probes ? h.probes.count : 0],
     ["probes' ray hits", 4, h.probes ? h.probes.count * h.probes.rays : 0],
+    ["patches' baked radiance", 12, h.probes ? h.patches : 0],
   ];
 }
 
@@ -285,7 +286,8 @@ export function parseRadbakeLive(buffer, name = 'live.bin') {
   if (h.probes) {
     const s = section(1, h.probes.count);
     const valid = body.subarray(s, s + h.probes.count);
-    probes = { valid, hits: u32s(h.probes.count * h.probes.rays) };
+    const hits = u32s(h.probes.count * h.probes.rays);
+    probes = { valid, hits, baked: f32s(3 * P) };
   }
 
   // check_body: every index within its range, every value finite.
@@ -340,6 +342,7 @@ export function parseRadbakeLive(buffer, name = 'live.bin') {
     for (let k = 0; k < hits.length; k++) {
       if (hits[k] !== NONE && hits[k] >= P) fail("a probe ray's patch out of range");
     }
+    if (!probes.baked.every(Number.isFinite)) fail("a patch's baked radiance is not finite");
   }
   return { name, header, albedo, rows, cols, vals, suns, patch, share, corners, pixel, page, padding, probes };
 }
@@ -712,26 +715,21 @@ export class RadbakeLive {
    * suns (live/src/probes.rs, `Live::probe_delta`): (4π / n) Σᵢ ΔL(patch
    * hit by ray i) Y(ωᵢ) over the probe's rays, ΔL the patches' outgoing
    * radiance now less at the baked suns, filled into the invalid probes
-   * as the bake fills them. A Float32Array of 27 per probe (nine RGB
-   * coefficients, as `probes.bin`), or null for a file without the probes'
-   * rays. The first call solves once at the baked suns, from zero.
+   * as the bake fills them; the baked radiance is the file's (the
+   * patches' L at the baked suns, exact visibility). A Float32Array of 27
+   * per probe (nine RGB coefficients, as `probes.bin`), or null for a file
+   * without the probes' rays.
    */
   probeDelta() {
     const probes = this.data.probes;
     const q = this.header.probes;
     if (!probes || !q) return null;
-    if (!this.baked) {
-      const kept = [this.direct.slice(), this.radiance.slice(), this.indirect.slice()];
-      this.radiance.fill(0);
-      this.setSuns(this.lights.map((l) => ({ direction: l.direction, irradiance: l.irradiance })));
-      this.solve(this.header.max_iterations);
-      this.baked = this.radiance.slice();
-      [this.direct, this.radiance, this.indirect] = kept;
+    if (!this.probeBasis) {
       this.probeBasis = weightedBasis(q.rays);
       this.probeFill = fillPlan(q.grids, probes.valid);
     }
     const dl = new Float32Array(this.radiance.length);
-    for (let i = 0; i < dl.length; i++) dl[i] = this.radiance[i] - this.baked[i];
+    for (let i = 0; i < dl.length; i++) dl[i] = this.radiance[i] - probes.baked[i];
     const n = q.rays;
     const y = this.probeBasis;
     const out = new Float32Array(27 * q.count);

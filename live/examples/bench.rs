@@ -37,10 +37,7 @@ fn main() {
         irradiance: light.irradiance,
     };
     live.update(&[sun(dirs.len() / 4)]).unwrap();
-    // The baked suns' solve, made once at the first probe update.
-    let t = Instant::now();
     let probes = live.probe_delta().map(|d| d.len());
-    let first_probes = t.elapsed().as_secs_f64() * 1e3;
     let mut times: Vec<[f64; 5]> = Vec::new();
     let mut pages = Vec::new();
     let mut iterations = Vec::new();
@@ -58,7 +55,13 @@ fn main() {
         std::hint::black_box((texels, &pages, delta));
         let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
         // An engine needs the texels' page once: solve + pages (pages reads the texels).
-        times.push([ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t0, t1) + ms(t2, t3), ms(t3, t4)]);
+        times.push([
+            ms(t0, t1),
+            ms(t1, t2),
+            ms(t2, t3),
+            ms(t0, t1) + ms(t2, t3),
+            ms(t3, t4),
+        ]);
         iterations.push(solve.iterations);
     }
     let median = |c: usize| {
@@ -82,7 +85,7 @@ fn main() {
     );
     if let (Some(n), Some(q)) = (probes, &h.probes) {
         println!(
-            "probes: {n} × {} rays; their change {:.1} / {:.1} ms per update, the first (with the baked suns' solve) {first_probes:.0} ms",
+            "probes: {n} × {} rays; their change {:.1} / {:.1} ms per update",
             q.rays,
             median(4).0,
             median(4).1

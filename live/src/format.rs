@@ -24,6 +24,7 @@
 //! | padding pixels, page by page, ring by ring: the pixel and the 3 × 3 neighbour (0–8, row order) it copies | padding pixel | u32 + u8 |
 //! | with `probes` (K probes, n rays): each probe's validity (1 valid, 0 inside a solid) | probe | u8 |
 //! | the patch each probe ray meets, ray i along [`crate::probes::fibonacci`]`(i, n)` (u32::MAX: none, a back face, the sky) | probe × ray | u32 |
+//! | the patches' outgoing radiance L at the baked suns (exact visibility), which the probes were baked with | patch | 3 × f32 |
 //!
 //! Read back with every count, offset and index checked, so a truncated
 //! or corrupted file is an error naming the section, never a panic or a
@@ -185,6 +186,10 @@ pub struct ProbeHits {
     pub valid: Vec<bool>,
     /// Probe-major: the patch ray i meets (u32::MAX: none).
     pub hits: Vec<u32>,
+    /// Per patch, its outgoing radiance L at the baked suns with their
+    /// exact visibility (not the table's): the light the baked probes saw,
+    /// from which [`crate::Live::probe_delta`] measures the change.
+    pub baked: Vec<[f32; 3]>,
 }
 
 /// The whole file's content.
@@ -236,6 +241,9 @@ impl LiveData {
         if let Some(p) = &self.probes {
             body.extend(p.valid.iter().map(|&v| v as u8));
             put_u32s(&mut body, &p.hits);
+            for l in &p.baked {
+                put_f32s(&mut body, l);
+            }
         }
         let mut out = Vec::with_capacity(20 + header.len() + body.len());
         out.extend_from_slice(&MAGIC);
@@ -337,9 +345,11 @@ fn body_len(h: &Header) -> Option<u64> {
         dirs.checked_mul(p)?,
         t.checked_mul(4 + 4 + 16 + 4 + 2)?,
         padding.checked_mul(5)?,
-        h.probes
-            .as_ref()
-            .map_or(Some(0), |q| q.count.checked_mul(1 + 4 * q.rays as u64))?,
+        h.probes.as_ref().map_or(Some(0), |q| {
+            q.count
+                .checked_mul(1 + 4 * q.rays as u64)?
+                .checked_add(p * 12)
+        })?,
     ];
     parts.iter().try_fold(0u64, |a, b| a.checked_add(*b))
 }
@@ -495,6 +505,9 @@ fn parse_body(header: Header, body: &[u8]) -> Result<LiveData> {
                 .map(|&v| v != 0)
                 .collect(),
             hits: r.u32s(q.count * q.rays as u64, "probes' ray hits")?,
+            baked: (r.f32s(p * 3, "patches' baked radiance")?.chunks_exact(3))
+                .map(|c| [c[0], c[1], c[2]])
+                .collect(),
         }),
         None => None,
     };
@@ -587,6 +600,9 @@ fn check_body(d: &LiveData) -> Result<()> {
     if let Some(q) = &d.probes {
         if q.hits.iter().any(|&x| x != u32::MAX && x as usize >= p) {
             return Err(bad("a probe ray's patch out of range"));
+        }
+        if q.baked.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(bad("a patch's baked radiance is not finite"));
         }
     }
     Ok(())

@@ -71,9 +71,6 @@ pub struct Live {
     /// With probe hits: per ray, its SH basis × 4π/n, and the fill.
     probe_basis: Vec<[f32; 9]>,
     probe_fill: Vec<(u32, Vec<u32>)>,
-    /// The patches' L at the baked suns (made at the first
-    /// [`Live::probe_delta`]).
-    baked: Option<Vec<[f32; 3]>>,
 }
 
 impl Live {
@@ -108,8 +105,12 @@ impl Live {
             sources,
             probe_basis,
             probe_fill,
-            baked: None,
         }
+    }
+
+    /// The file's content back (the solution dropped).
+    pub fn into_data(self) -> LiveData {
+        self.data
     }
 
     /// The suns as baked (the header's lights).
@@ -123,28 +124,14 @@ impl Live {
     }
 
     /// Per probe, the change of the live layer's radiance SH since the
-    /// baked suns, filled into the invalid probes as the bake fills them
+    /// baked suns (the patches' L then: [`crate::format::ProbeHits`]'s
+    /// `baked`), filled into the invalid probes as the bake fills them
     /// ([`crate::probes`]): the live layer's probes now are its baked ones
     /// (`probes_<layer>.bin`) + this. `None` for a file without probe
-    /// hits. The first call solves once at the baked suns, from zero.
-    pub fn probe_delta(&mut self) -> Option<Vec<crate::probes::Sh9>> {
-        self.data.probes.as_ref()?;
-        if self.baked.is_none() {
-            let now = (
-                self.direct.clone(),
-                self.radiance.clone(),
-                self.indirect.clone(),
-            );
-            let suns = self.baked_suns();
-            self.radiance.iter_mut().for_each(|l| *l = [0.0; 3]);
-            // The header's directions are checked to be of length > 0.
-            if self.set_suns(&suns).is_ok() {
-                self.solve(self.data.header.max_iterations);
-            }
-            self.baked = Some(std::mem::take(&mut self.radiance));
-            (self.direct, self.radiance, self.indirect) = now;
-        }
-        let (hits, baked) = (self.data.probes.as_ref()?, self.baked.as_ref()?);
+    /// hits.
+    pub fn probe_delta(&self) -> Option<Vec<crate::probes::Sh9>> {
+        let hits = self.data.probes.as_ref()?;
+        let baked = &hits.baked;
         let dl: Vec<[f32; 3]> = (self.radiance.iter().zip(baked))
             .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
             .collect();
@@ -602,7 +589,8 @@ mod tests {
     }
 
     /// The two patches with two probes of two rays: the first sees
-    /// patch 0 then patch 1, the second (invalid) is filled from it.
+    /// patch 0 then patch 1, the second (invalid) is filled from it; the
+    /// baked radiance the solution at the baked sun.
     fn with_probes(mut data: LiveData) -> LiveData {
         data.header.probes = Some(crate::format::ProbeHeader {
             count: 2,
@@ -612,9 +600,12 @@ mod tests {
                 resolution: [2, 1, 1],
             }],
         });
+        let mut live = Live::new(data.clone());
+        live.update(&live.baked_suns()).unwrap();
         data.probes = Some(crate::format::ProbeHits {
             valid: vec![true, false],
             hits: vec![0, 1, u32::MAX, u32::MAX],
+            baked: live.patch_radiance().to_vec(),
         });
         data
     }

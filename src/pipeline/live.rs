@@ -19,7 +19,7 @@ use super::texel_light::TexelLight;
 use crate::config::{BakeConfig, LightMode, Solver, LIVE_LAYER};
 use crate::error::{Error, Result};
 use crate::light::sky::Sky;
-use crate::light::sun_table::{sun_table, sun_table_along};
+use crate::light::sun_table::{patch_direct, sun_table, sun_table_along};
 use crate::maps::lightmap;
 use crate::scene::layers::Layers;
 use crate::scene::Scene;
@@ -148,14 +148,57 @@ pub fn build(
         sky: sky_layer(s.scene, sky, layers),
         probes: probes.as_ref().map(|p| p.0.clone()),
     };
-    Ok(Some(LiveData {
+    let data = LiveData {
         header,
         albedo: s.patches.albedo.iter().map(|a| a.to_array()).collect(),
         matrix,
         suns,
         texels,
-        probes: probes.map(|p| p.1),
+        probes: None,
+    };
+    Ok(Some(match probes {
+        Some((_, hits)) => with_baked_radiance(s, &live, config, data, hits)?,
+        None => data,
     }))
+}
+
+/// `data` with the probes' `hits` and the patches' outgoing radiance at
+/// the baked suns, which the probes were baked with: D from each live
+/// light's exact visibility at its direction ([`patch_direct`], not the
+/// table's interpolation: a sun off its path is the bake's own), solved
+/// by the run time's Jacobi iterations. So the probes' change at run time
+/// is measured from the light they hold.
+///
+/// # Errors
+/// [`Error::Config`] should the direct light not be finite.
+fn with_baked_radiance(
+    s: &Surfaces,
+    live: &[usize],
+    config: &BakeConfig,
+    data: LiveData,
+    mut hits: ProbeHits,
+) -> Result<LiveData> {
+    let mut direct = vec![[0.0f32; 3]; s.patches.len()];
+    for &i in live {
+        let light = &s.scene.lights[i];
+        let d = patch_direct(s, light, &[-light.direction], config.seed, &|_| {});
+        for (acc, row) in direct.iter_mut().zip(&d) {
+            for (c, e) in acc.iter_mut().zip(light.intensity.to_array()) {
+                *c += e * row[0];
+            }
+        }
+    }
+    let max = data.header.max_iterations;
+    let mut solver = radbake_live::Live::new(data);
+    solver.set_direct(&direct).map_err(|e| Error::Config {
+        key: "live".into(),
+        message: e.to_string(),
+    })?;
+    solver.solve(max);
+    hits.baked = solver.patch_radiance().to_vec();
+    let mut data = solver.into_data();
+    data.probes = Some(hits);
+    Ok(data)
 }
 
 /// The patch that each probe's rays meet: ray i along the Fibonacci
@@ -192,7 +235,8 @@ fn probe_hits(s: &Surfaces, probes: &Probes, rays: u32) -> (ProbeHeader, ProbeHi
             .collect(),
     };
     let valid = probes.valid.clone();
-    (header, ProbeHits { valid, hits })
+    let baked = Vec::new();
+    (header, ProbeHits { valid, hits, baked })
 }
 
 /// A live light's path directions: its node's, else the settings' (None:

@@ -5,10 +5,11 @@
 // warm-started from the last. Two runs:
 //
 // 1. the run time alone (web/radbake-live.js: `RadbakeLive.update`, the
-//    direct light, the solve, the texels and the live layer's pages);
-// 2. as a page uses it (web/radbake-three.js: the `.glb`, its light
-//    layers and `loadRadbakeLive`'s `setSun`): the update and the
-//    lightmap pages recombined into their half-float textures.
+//    direct light, the solve, the texels and the live layer's pages),
+//    and `probeDelta` (the probes' change) after it;
+// 2. as a page uses it (web/radbake-three.js: the `.glb`, its probes and
+//    light layers, `loadRadbakeLive`'s `setSun`): the update, the probes'
+//    change, and the lightmap pages and probes recombined.
 //
 // Prints the load times, the median and worst update and its parts, and
 // the iterations. A benchmark, not a test:
@@ -95,14 +96,20 @@ try {
     const start = dirs.length >> 2;
     const first = runtime.update({ direction: mid(start) });
     const alone = [];
-    for (let s = 0; s < steps; s++) alone.push(runtime.update({ direction: mid(start + s + 1) }));
+    for (let s = 0; s < steps; s++) {
+      const u = runtime.update({ direction: mid(start + s + 1) });
+      const t = performance.now();
+      const delta = runtime.probeDelta();
+      alone.push({ ...u, probesMs: delta ? performance.now() - t : NaN });
+    }
 
     // As a page uses it: the glb, its layers, loadRadbakeLive.
     const { GLTFLoader } = await import('three/addons/loaders/GLTFLoader.js');
     const R = await import('/radbake-three.js');
     const gltf = await new GLTFLoader().register((p) => new R.RadbakeLightmapPlugin(p)).loadAsync(`/bake/${manifest.baked_gltf}`);
     const t3 = performance.now();
-    const layers = await R.loadRadbakeLayers('/bake/manifest.json', gltf.scene);
+    const probes = manifest.probes ? await R.loadRadbakeProbes('/bake/probes.json') : null;
+    const layers = await R.loadRadbakeLayers('/bake/manifest.json', gltf.scene, probes);
     const t4 = performance.now();
     const live = await R.loadRadbakeLive('/bake/manifest.json', layers, { sun: { direction: mid(start) } });
     const t5 = performance.now();
@@ -132,12 +139,12 @@ try {
   );
   console.log(
     `  ${steps} updates, sun stepped one sample each (median / worst): solve ${stat(r.alone, 'solveMs')} ms (${iterations(r.alone)}), ` +
-      `texels + pages ${stat(r.alone, 'pagesMs')} ms; update ${stat(r.alone, 'ms')} ms`,
+      `texels + pages ${stat(r.alone, 'pagesMs')} ms; update ${stat(r.alone, 'ms')} ms; the probes' change ${stat(r.alone, 'probesMs')} ms`,
   );
   console.log(`three.js: layers loaded in ${r.layersLoad.toFixed(0)} ms, loadRadbakeLive ${r.liveLoad.toFixed(0)} ms`);
   console.log(
     `  ${steps} setSun (median / worst): update ${stat(r.paged, 'solve')} + ${stat(r.paged, 'pages')} ms (solve, pages), ` +
-      `lightmap recombined ${stat(r.paged, 'lightmap')} ms; in all ${stat(r.paged, 'ms')} ms (${iterations(r.paged)})`,
+      `probes' change ${stat(r.paged, 'probes')} ms, lightmap and probes recombined ${stat(r.paged, 'lightmap')} ms; in all ${stat(r.paged, 'ms')} ms (${iterations(r.paged)})`,
   );
 } finally {
   await browser.close();

@@ -457,7 +457,11 @@ fn start(
             let baked = sources.volumes.get(i)?.1.get(*k)?;
             // The grids match the volumes (checked at load).
             let sum = baked.iter().zip(delta);
-            Some((*k, sum.map(|(b, d)| (*b + Vec3::from(*d)).max(Vec3::ZERO).to_array()).collect()))
+            Some((
+                *k,
+                sum.map(|(b, d)| (*b + Vec3::from(*d)).max(Vec3::ZERO).to_array())
+                    .collect(),
+            ))
         };
         let volumes = (sources.volumes.iter().enumerate())
             .map(|(i, (t, l))| {

@@ -157,7 +157,7 @@ pub(crate) fn solve(mut solver: Box<Live>, sun: Sun, mut pages: Vec<Vec<[f32; 3]
     let mut volumes = None;
     if result.is_ok() {
         solver.write_pages(&mut pages);
-        volumes = volume_deltas(&mut solver);
+        volumes = volume_deltas(&solver);
     }
     Solved {
         solver,
@@ -173,7 +173,7 @@ pub(crate) fn solve(mut solver: Box<Live>, sun: Sun, mut pages: Vec<Vec<[f32; 3]
 /// ([`Live::probe_delta`]) in Bevy 0.19's irradiance-volume layout (as
 /// radbake writes `probes_<k>.ktx2`): size (Rx, 2·Ry, 3·Rz), face
 /// 2·axis + negative at texel (x, y + Ry·negative, z + Rz·axis).
-fn volume_deltas(solver: &mut Live) -> Option<Vec<Vec<[f32; 3]>>> {
+fn volume_deltas(solver: &Live) -> Option<Vec<Vec<[f32; 3]>>> {
     let delta = solver.probe_delta()?;
     let grids = solver.data().header.probes.as_ref()?.grids.clone();
     let volumes = grids

@@ -897,9 +897,14 @@ fn volume_texels(world: &mut World) -> Vec<Vec<Vec3>> {
     handles
         .iter()
         .map(|h| {
-            let data = images.get(h).and_then(|i| i.data.clone()).unwrap_or_default();
+            let data = images
+                .get(h)
+                .and_then(|i| i.data.clone())
+                .unwrap_or_default();
             (data.chunks_exact(4))
-                .map(|c| bevy_radbake::layers::rgb9e5_to_rgb(u32::from_le_bytes(c.try_into().unwrap())))
+                .map(|c| {
+                    bevy_radbake::layers::rgb9e5_to_rgb(u32::from_le_bytes(c.try_into().unwrap()))
+                })
                 .collect()
         })
         .collect()
@@ -1067,13 +1072,19 @@ fn live_sun_turns_as_the_preview_does() {
     let cubes = |d: &Path| -> Vec<Vec3> {
         let probes = radbake::probes::Probes::read(&d.join("probes.json")).unwrap();
         let (_, texels) = radbake::output::probes::volume_texels(&probes, 0);
-        texels.into_iter().map(bevy_radbake::layers::rgb9e5_to_rgb).collect()
+        texels
+            .into_iter()
+            .map(bevy_radbake::layers::rgb9e5_to_rgb)
+            .collect()
     };
     let (want, baked) = (cubes(&relit), cubes(&dir));
     let bevy = &run.volumes[0];
     assert_eq!(bevy.len(), want.len());
     let l1 = |a: &[Vec3], b: &[Vec3]| -> f32 {
-        a.iter().zip(b).map(|(x, y)| (*x - *y).abs().element_sum()).sum::<f32>()
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (*x - *y).abs().element_sum())
+            .sum::<f32>()
             / b.iter().map(|y| y.element_sum()).sum::<f32>()
     };
     let (off, moved) = (l1(bevy, &want), l1(&baked, &want));
