@@ -733,22 +733,27 @@ export class RadbakeLive {
     const n = q.rays;
     const y = this.probeBasis;
     const out = new Float32Array(27 * q.count);
+    const { valid, hits } = probes;
+    // 27 accumulators in locals: typed-array writes per ray cost 3 × as much in V8.
     for (let p = 0; p < q.count; p++) {
-      if (!probes.valid[p]) continue;
-      const o = 27 * p;
-      for (let i = 0; i < n; i++) {
-        const hit = probes.hits[p * n + i];
+      if (!valid[p]) continue;
+      let r0 = 0, r1 = 0, r2 = 0, r3 = 0, r4 = 0, r5 = 0, r6 = 0, r7 = 0, r8 = 0;
+      let g0 = 0, g1 = 0, g2 = 0, g3 = 0, g4 = 0, g5 = 0, g6 = 0, g7 = 0, g8 = 0;
+      let b0 = 0, b1 = 0, b2 = 0, b3 = 0, b4 = 0, b5 = 0, b6 = 0, b7 = 0, b8 = 0;
+      for (let i = 0, at = p * n; i < n; i++) {
+        const hit = hits[at + i];
         if (hit === NONE) continue;
         const r = dl[3 * hit];
         const g = dl[3 * hit + 1];
         const b = dl[3 * hit + 2];
-        for (let k = 0; k < 9; k++) {
-          const w = y[9 * i + k];
-          out[o + 3 * k] += r * w;
-          out[o + 3 * k + 1] += g * w;
-          out[o + 3 * k + 2] += b * w;
-        }
+        if (r === 0 && g === 0 && b === 0) continue;
+        const o = 9 * i;
+        const y0 = y[o], y1 = y[o + 1], y2 = y[o + 2], y3 = y[o + 3], y4 = y[o + 4], y5 = y[o + 5], y6 = y[o + 6], y7 = y[o + 7], y8 = y[o + 8];
+        r0 += r * y0; r1 += r * y1; r2 += r * y2; r3 += r * y3; r4 += r * y4; r5 += r * y5; r6 += r * y6; r7 += r * y7; r8 += r * y8;
+        g0 += g * y0; g1 += g * y1; g2 += g * y2; g3 += g * y3; g4 += g * y4; g5 += g * y5; g6 += g * y6; g7 += g * y7; g8 += g * y8;
+        b0 += b * y0; b1 += b * y1; b2 += b * y2; b3 += b * y3; b4 += b * y4; b5 += b * y5; b6 += b * y6; b7 += b * y7; b8 += b * y8;
       }
+      out.set([r0, g0, b0, r1, g1, b1, r2, g2, b2, r3, g3, b3, r4, g4, b4, r5, g5, b5, r6, g6, b6, r7, g7, b7, r8, g8, b8], 27 * p);
     }
     for (const [p, from] of this.probeFill) {
       for (let c = 0; c < 27; c++) {
