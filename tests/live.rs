@@ -229,6 +229,8 @@ fn relight_writes_a_bake_folder_and_bad_input_is_named() {
     std::fs::write(&live_bin, &bytes[..n / 2]).unwrap();
     let e = error_of(&["relight", br, "--sun-direction", "0,1,0", "-o", x]);
     assert!(e.contains("live.bin") && e.contains("truncated"), "{e}");
+    let e = error_of(&["bake", p, "--live", "--live-probe-rays", "5000", "-o", x]);
+    assert!(e.contains("live_probe_rays"), "{e}");
     let e = error_of(&["bake", p, "--live", "--sun-path", "80,355", "-o", x]);
     assert!(e.contains("never rises"), "{e}");
     let e = error_of(&["bake", p, "--live", "--solver", "progressive", "-o", x]);
