@@ -71,6 +71,8 @@ pub struct Live {
     /// With probe hits: per ray, its SH basis × 4π/n, and the fill.
     probe_basis: Vec<[f32; 9]>,
     probe_fill: Vec<(u32, Vec<u32>)>,
+    /// [`Live::write_pages`]' texel buffers, kept between updates.
+    scratch: (Vec<[f32; 3]>, Vec<[f32; 3]>),
 }
 
 impl Live {
@@ -105,6 +107,7 @@ impl Live {
             sources,
             probe_basis,
             probe_fill,
+            scratch: (Vec::new(), Vec::new()),
         }
     }
 
@@ -290,11 +293,20 @@ impl Live {
     /// k × k block, as the bake computes them), shifted per patch to keep
     /// the patch's mean, clamped at 0 (the bake's first pass).
     pub fn texels(&self) -> Vec<[f32; 3]> {
+        let (mut bil, mut out) = (Vec::new(), Vec::new());
+        self.texels_into(&mut bil, &mut out);
+        out
+    }
+
+    /// [`Live::texels`] into `out`, with `bil` for the bilinear values
+    /// (both buffers reused: no texel-sized allocation per update).
+    fn texels_into(&self, bil: &mut Vec<[f32; 3]>, out: &mut Vec<[f32; 3]>) {
         let t = &self.data.texels;
         let values = &self.indirect;
-        let bil: Vec<[f32; 3]> = (self.weights.par_iter().zip(&t.corners))
-            .zip(&t.patch)
-            .map(|((w, c), &own)| {
+        bil.resize(t.patch.len(), [0.0; 3]);
+        (bil.par_iter_mut().zip(&self.weights))
+            .zip(t.corners.par_iter().zip(&t.patch))
+            .for_each(|((b, w), (c, &own))| {
                 let mut acc = [0.0f32; 3];
                 let mut any = false;
                 for (&q, &wt) in c.iter().zip(w) {
@@ -304,13 +316,8 @@ impl Live {
                         acc = [acc[0] + v[0] * wt, acc[1] + v[1] * wt, acc[2] + v[2] * wt];
                     }
                 }
-                if any {
-                    acc
-                } else {
-                    values[own as usize]
-                }
-            })
-            .collect();
+                *b = if any { acc } else { values[own as usize] };
+            });
         // Each patch's shift: its value less its texels' area-weighted mean.
         let shift: Vec<[f32; 3]> = (0..values.len())
             .into_par_iter()
@@ -324,19 +331,19 @@ impl Live {
                 [0, 1, 2].map(|c| values[p][c] - mean[c])
             })
             .collect();
-        bil.par_iter()
+        out.resize(t.patch.len(), [0.0; 3]);
+        (out.par_iter_mut().zip(&*bil))
             .zip(&t.patch)
-            .map(|(b, &p)| {
+            .for_each(|((o, b), &p)| {
                 let s = shift[p as usize];
-                [0, 1, 2].map(|c| (b[c] + s[c]).max(0.0))
-            })
-            .collect()
+                *o = [0, 1, 2].map(|c| (b[c] + s[c]).max(0.0));
+            });
     }
 
     /// The live layer's pages (row-major RGB per page, irradiance / π):
     /// each texel at its pixel, the padding rings copied from their
     /// neighbours (the bake's dilation, as copies), every other pixel 0.
-    pub fn pages(&self) -> Vec<Vec<[f32; 3]>> {
+    pub fn pages(&mut self) -> Vec<Vec<[f32; 3]>> {
         let mut pages = Vec::new();
         self.write_pages(&mut pages);
         pages
@@ -344,8 +351,9 @@ impl Live {
 
     /// [`Live::pages`] into `pages`, reusing its buffers (an engine's
     /// frame loop: no page-sized allocation per update).
-    pub fn write_pages(&self, pages: &mut Vec<Vec<[f32; 3]>>) {
-        let texels = self.texels();
+    pub fn write_pages(&mut self, pages: &mut Vec<Vec<[f32; 3]>>) {
+        let (mut bil, mut texels) = std::mem::take(&mut self.scratch);
+        self.texels_into(&mut bil, &mut texels);
         pages.resize_with(self.sources.len(), Vec::new);
         for (page, src) in pages.iter_mut().zip(&self.sources) {
             page.resize(src.len(), [0.0; 3]);
@@ -357,6 +365,7 @@ impl Live {
                 };
             });
         }
+        self.scratch = (bil, texels);
     }
 }
 
