@@ -252,35 +252,6 @@ function toHalf(sum, out) {
   }
 }
 
-/** toHalf at the pixels `at` alone (indices of RGB triples). */
-function toHalfAt(sum, out, at) {
-  const { base, shift } = HALF;
-  const bits = new Uint32Array(sum.buffer, sum.byteOffset, sum.length);
-  for (let k = 0; k < at.length; k++) {
-    const j = 3 * at[k];
-    const o = 4 * at[k];
-    let f = bits[j] + 0x1000;
-    let e = (f >>> 23) & 0x1ff;
-    out[o] = base[e] + ((f & 0x7fffff) >> shift[e]);
-    f = bits[j + 1] + 0x1000;
-    e = (f >>> 23) & 0x1ff;
-    out[o + 1] = base[e] + ((f & 0x7fffff) >> shift[e]);
-    f = bits[j + 2] + 0x1000;
-    e = (f >>> 23) & 0x1ff;
-    out[o + 2] = base[e] + ((f & 0x7fffff) >> shift[e]);
-  }
-}
-
-/** addTo at the pixels `at` alone. */
-function addToAt(sum, fixed, src, [r, g, b], at) {
-  for (let k = 0; k < at.length; k++) {
-    const j = 3 * at[k];
-    sum[j] = fixed[j] + r * src[j];
-    sum[j + 1] = fixed[j + 1] + g * src[j + 1];
-    sum[j + 2] = fixed[j + 2] + b * src[j + 2];
-  }
-}
-
 /** sum = fixed + w ⊙ src, all packed RGB. */
 function addTo(sum, fixed, src, [r, g, b]) {
   for (let j = 0; j < sum.length; j += 3) {
@@ -443,21 +414,11 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
       if (replacedLayer) {
         const { k: r, fixed } = replacedLayer;
         const others = fixed.get(page);
-        const at = replacedLayer.shown && replacedLayer.shown[page];
-        if (all || replacedLayer.stale || !at) {
-          if (all || replacedLayer.stale) {
-            others.fill(0);
-            sources.forEach((src, k) => k !== r && accumulate(others, src, w[k]));
-          }
-          addTo(sum, others, sources[r], w[r]);
-        } else {
-          // Only the pixels the layer's pages can light change.
-          addToAt(sum, others, sources[r], w[r], at);
-          toHalfAt(sum, texture.image.data, at);
-          texels += at.length;
-          for (const t of clones) t.needsUpdate = true;
-          continue;
+        if (all || replacedLayer.stale) {
+          others.fill(0);
+          sources.forEach((src, k) => k !== r && accumulate(others, src, w[k]));
         }
+        addTo(sum, others, sources[r], w[r]);
       } else {
         sum.fill(0);
         sources.forEach((src, k) => accumulate(sum, src, w[k]));
@@ -503,13 +464,10 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
    * error saying so. Returns `refresh(probeDelta)`, which recombines the
    * pages after `pages` changed in place: the other layers' weighted sum
    * is kept between weight changes, so a refresh costs one add per texel
-   * and the half-float conversion, at the pixels `shown[page]` alone
-   * where given (a Uint32Array per page index of the pixels its pages
-   * can be non-zero at: every other stays 0). `probeDelta` (27 floats per
-   * probe, as `probes.bin`; null: none) is added to the layer's probes as
-   * baked.
+   * and the half-float conversion. `probeDelta` (27 floats per probe, as
+   * `probes.bin`; null: none) is added to the layer's probes as baked.
    */
-  function replaceLayer(name, pages, why = null, shown = null) {
+  function replaceLayer(name, pages, why = null) {
     const k = names.indexOf(known(name));
     for (const [page, { texture }] of combined) {
       const p = pages[page];
@@ -520,7 +478,7 @@ export async function loadRadbakeLayers(manifestUrl, root, probes = null) {
     }
     for (const [page] of combined) layerPages[k].set(page, { url: `${name} (run time)`, ...pages[page] });
     const fixed = new Map([...combined].map(([page, { sum }]) => [page, new Float32Array(sum.length)]));
-    replacedLayer = { k, name, why, fixed, stale: true, probeDelta: null, shown };
+    replacedLayer = { k, name, why, fixed, stale: true, probeDelta: null };
     recombine();
     return (probeDelta = null) => {
       if (probeDelta && probes && probeDelta.length !== probes.floats.length) {
@@ -628,10 +586,7 @@ export async function loadRadbakeLive(manifestUrl, layers, { sun = null, sky = n
     next.forEach((s, i) => {
       suns[i] = { direction: [...s.direction], irradiance: [...s.irradiance] };
     });
-    if (!refresh) {
-      const why = "it is re-solved for the sun: give the sun's irradiance instead (setSun)";
-      refresh = layers.replaceLayer(h.layer, runtime.pages, why, runtime.shown.map((s) => s.pixels));
-    }
+    if (!refresh) refresh = layers.replaceLayer(h.layer, runtime.pages, "it is re-solved for the sun: give the sun's irradiance instead (setSun)");
     const t = performance.now();
     const delta = layers.probes ? runtime.probeDelta() : null;
     const probesMs = performance.now() - t;

@@ -72,7 +72,7 @@ pub fn irradiance_over_pi(sh: &Sh9, n: [f32; 3]) -> [f32; 3] {
     let mut e = [0.0; 3];
     for k in 0..9 {
         for c in 0..3 {
-            e[c] += sh[k][c] * COSINE_OVER_PI[k] * y[k];
+            e[c] += sh[k][c] * (COSINE_OVER_PI[k] * y[k]);
         }
     }
     e
@@ -93,6 +93,23 @@ pub const AXES: [[f32; 3]; 6] = [
 /// not clamped (callers clamp a whole probe's light, not a change).
 pub fn ambient_cube(sh: &Sh9) -> [[f32; 3]; 6] {
     AXES.map(|n| irradiance_over_pi(sh, n))
+}
+
+/// Bevy 0.19's irradiance-volume image for a grid of resolution `r`
+/// (as its shader reads it, and radbake writes `probes_<k>.ktx2`): size
+/// (Rx, 2·Ry, 3·Rz).
+pub fn volume_size(r: [u32; 3]) -> [u32; 3] {
+    [r[0], 2 * r[1], 3 * r[2]]
+}
+
+/// Where in [`volume_size`]'s image the ambient cube's `face` (2 · axis +
+/// negative, [`AXES`]) of the probe at grid cell `c` goes: texel
+/// (x, y + Ry·negative, z + Rz·axis), row-major.
+pub fn volume_texel(r: [u32; 3], c: [u32; 3], face: usize) -> usize {
+    let [sx, sy, _] = volume_size(r);
+    let (axis, neg) = ((face / 2) as u32, (face % 2) as u32);
+    let (x, y, z) = (c[0], c[1] + r[1] * neg, c[2] + r[2] * axis);
+    (x + sx * (y + sy * z)) as usize
 }
 
 /// How the invalid probes of `grids` take their neighbours' light, in

@@ -26,18 +26,14 @@ pub fn volume_texels(probes: &Probes, k: usize) -> ([u32; 3], Vec<u32>) {
 /// light layer's).
 fn volume_texels_of(probes: &Probes, sh_set: &[sh::Sh9], k: usize) -> ([u32; 3], Vec<u32>) {
     let v = &probes.volumes[k];
-    let r = v.resolution;
-    let size = [r.x, 2 * r.y, 3 * r.z];
+    let r = v.resolution.to_array();
+    let size = radbake_live::probes::volume_size(r);
     let mut texels = vec![0u32; (size[0] * size[1] * size[2]) as usize];
     for i in 0..v.len() {
-        let c = v.coords(i);
         let cube = sh::ambient_cube(&sh_set[v.first + i]);
-        for axis in 0..3u32 {
-            for neg in 0..2u32 {
-                let (x, y, z) = (c.x, c.y + r.y * neg, c.z + r.z * axis);
-                let at = (x + size[0] * (y + size[1] * z)) as usize;
-                texels[at] = rgb9e5(cube[(2 * axis + neg) as usize]);
-            }
+        for (face, value) in cube.iter().enumerate() {
+            let at = radbake_live::probes::volume_texel(r, v.coords(i).to_array(), face);
+            texels[at] = rgb9e5(*value);
         }
     }
     (size, texels)

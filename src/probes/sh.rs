@@ -18,13 +18,6 @@ pub fn basis(d: Vec3) -> [f32; 9] {
     radbake_live::probes::basis(d.to_array())
 }
 
-/// Band of each coefficient.
-const BAND: [usize; 9] = [0, 1, 1, 1, 2, 2, 2, 2, 2];
-
-/// Âₗ / π: the clamped-cosine kernel's bands divided by π, so that
-/// [`irradiance_over_pi`] gives E/π, the lightmap's quantity.
-const COSINE_OVER_PI: [f32; 3] = [1.0, 2.0 / 3.0, 0.25];
-
 /// Adds radiance `l` arriving from direction `d` with weight `w` (a
 /// quadrature weight in steradians, or 1 for a delta light's irradiance).
 #[inline]
@@ -35,24 +28,26 @@ pub fn add(sh: &mut Sh9, d: Vec3, l: Vec3, w: f32) {
 }
 
 /// Irradiance / π for a surface of normal `n` lit by radiance `sh`
-/// (may be negative where L2 rings; callers clamp).
+/// (may be negative where L2 rings; callers clamp): the runtime's
+/// [`radbake_live::probes::irradiance_over_pi`].
 pub fn irradiance_over_pi(sh: &Sh9, n: Vec3) -> Vec3 {
-    basis(n)
-        .iter()
-        .enumerate()
-        .map(|(i, y)| sh[i] * (COSINE_OVER_PI[BAND[i]] * y))
-        .sum()
+    let sh = sh.map(|c| c.to_array());
+    Vec3::from(radbake_live::probes::irradiance_over_pi(&sh, n.to_array()))
 }
 
-/// The six axis normals, in the ambient cube's face order.
-pub const AXES: [Vec3; 6] = [
-    Vec3::X,
-    Vec3::NEG_X,
-    Vec3::Y,
-    Vec3::NEG_Y,
-    Vec3::Z,
-    Vec3::NEG_Z,
-];
+/// The six axis normals, in the ambient cube's face order
+/// ([`radbake_live::probes::AXES`]).
+pub const AXES: [Vec3; 6] = {
+    let a = radbake_live::probes::AXES;
+    [
+        Vec3::from_array(a[0]),
+        Vec3::from_array(a[1]),
+        Vec3::from_array(a[2]),
+        Vec3::from_array(a[3]),
+        Vec3::from_array(a[4]),
+        Vec3::from_array(a[5]),
+    ]
+};
 
 /// The six faces of Valve's ambient cube (Mitchell 2006), +X, −X, +Y, −Y,
 /// +Z, −Z ([`AXES`]): irradiance / π for each axis normal, clamped at zero.

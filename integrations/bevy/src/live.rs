@@ -170,26 +170,23 @@ pub(crate) fn solve(mut solver: Box<Live>, sun: Sun, mut pages: Vec<Vec<[f32; 3]
 }
 
 /// Per probe grid, the ambient cubes of the live layer's probe change
-/// ([`Live::probe_delta`]) in Bevy 0.19's irradiance-volume layout (as
-/// radbake writes `probes_<k>.ktx2`): size (Rx, 2·Ry, 3·Rz), face
-/// 2·axis + negative at texel (x, y + Ry·negative, z + Rz·axis).
+/// ([`Live::probe_delta`]) in Bevy 0.19's irradiance-volume layout
+/// ([`radbake_live::probes::volume_texel`], as radbake writes
+/// `probes_<k>.ktx2`).
 fn volume_deltas(solver: &Live) -> Option<Vec<Vec<[f32; 3]>>> {
     let delta = solver.probe_delta()?;
     let grids = solver.data().header.probes.as_ref()?.grids.clone();
     let volumes = grids
         .iter()
         .map(|g| {
+            let [sx, sy, sz] = radbake_live::probes::volume_size(g.resolution);
+            let mut texels = vec![[0.0f32; 3]; (sx * sy * sz) as usize];
             let [rx, ry, rz] = g.resolution.map(|r| r as usize);
-            let (sx, sy) = (rx, 2 * ry);
-            let mut texels = vec![[0.0f32; 3]; sx * sy * 3 * rz];
             for i in 0..rx * ry * rz {
-                let (x, y, z) = (i % rx, (i / rx) % ry, i / (rx * ry));
+                let c = [i % rx, (i / rx) % ry, i / (rx * ry)].map(|v| v as u32);
                 let cube = radbake_live::probes::ambient_cube(&delta[g.first as usize + i]);
-                for axis in 0..3 {
-                    for neg in 0..2 {
-                        let at = x + sx * ((y + ry * neg) + sy * (z + rz * axis));
-                        texels[at] = cube[2 * axis + neg];
-                    }
+                for (face, value) in cube.into_iter().enumerate() {
+                    texels[radbake_live::probes::volume_texel(g.resolution, c, face)] = value;
                 }
             }
             texels
