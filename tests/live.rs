@@ -384,3 +384,101 @@ fn the_live_probes_follow_the_sun() {
         "relit {error}, as baked {moved}, texels {surfaces}"
     );
 }
+
+/// Independent of the bake: the porch baked with its sun live and a sky,
+/// relit by the runtime for the sun turned 30° about +Y, each instance's
+/// mean (what it receives: every layer, the live one relit, over its
+/// exposed texels, as `report.json`'s `mean`) against the meter
+/// (`radbake measure`: path traced from the scene's triangles, no atlas,
+/// texels, patches or form factors) on the scene with the sun there in
+/// mode `indirect` (its direct light left out, its bounces kept, as the
+/// live layer's). Within 3 % or 3 standard errors, the target
+/// for a full bake: the live solution has no final gather.
+#[test]
+fn the_relit_porch_matches_the_meter() {
+    use radbake::trace::measure::{Meter, MeterSettings};
+    let sky = Vec3::new(0.3, 0.4, 0.55);
+    let mut scene = radbake::scene::load(&scene_path("porch.gltf"), &Default::default()).unwrap();
+    let mut config = BakeConfig {
+        texels_per_meter: 8.0,
+        sky: sky.into(),
+        probes: false,
+        ..BakeConfig::default()
+    };
+    config
+        .light_modes
+        .lights
+        .insert("sun".into(), LightMode::Live);
+    config.light_modes.apply(&mut scene).unwrap();
+    let bake = radbake::bake(&scene, &config, &Silent).unwrap();
+    let to_sun = -scene.lights[0].direction;
+    let turned = glam::Quat::from_rotation_y(30f32.to_radians()) * to_sun;
+    let mut live = Live::new(bake.live.clone().unwrap());
+    live.update(&[Sun {
+        direction: turned.to_array(),
+        irradiance: scene.lights[0].intensity.to_array(),
+    }])
+    .unwrap();
+    let relit_live = live.texels();
+    let k = (bake.layers.as_ref().unwrap().names.iter())
+        .position(|n| n == "live")
+        .unwrap();
+    let n = scene.instances.len();
+    // Per instance: Σ a, Σ a·exposed·value (relit), the same as baked.
+    let mut sums = vec![[0.0f64; 3]; n];
+    for t in 0..bake.texels.len() {
+        let exposed = if bake.transport.valid[t] {
+            bake.burial.exposed(t) as f64
+        } else {
+            0.0
+        };
+        let others: Vec3 = (bake.maps.layers.iter().enumerate())
+            .filter(|(j, _)| *j != k)
+            .map(|(_, lm)| lm.texel_values[t])
+            .sum();
+        let relit = others + Vec3::from(relit_live[t]);
+        let baked = others + bake.maps.layers[k].texel_values[t];
+        let a = bake.texels.area[t] as f64;
+        let s = &mut sums[bake.texels.instance[t] as usize];
+        s[0] += a;
+        s[1] += a * exposed * relit.element_sum() as f64 / 3.0;
+        s[2] += a * exposed * baked.element_sum() as f64 / 3.0;
+    }
+
+    let mut metered = scene.clone();
+    let mut indirect = config.clone();
+    indirect
+        .light_modes
+        .lights
+        .insert("sun".into(), LightMode::Indirect);
+    indirect.light_modes.apply(&mut metered).unwrap();
+    metered.lights[0].direction = -turned;
+    let settings = MeterSettings {
+        samples: 200_000,
+        normal: Default::default(),
+        sky,
+        seed: 11,
+    };
+    let readings = Meter::new(&metered).measure(&[], &settings).unwrap();
+    let mut moved = 0.0f64;
+    for (i, m) in readings.iter().enumerate() {
+        assert_eq!(scene.instances[i].node, m.node);
+        let want = m.mean.iter().sum::<f64>() / 3.0;
+        let se = m.std_error.iter().map(|s| s * s).sum::<f64>().sqrt() / 3.0;
+        let (got, before) = (sums[i][1] / sums[i][0], sums[i][2] / sums[i][0]);
+        println!(
+            "porch, sun turned 30°: {} relit {got:.5}, as baked {before:.5}, meter {want:.5} ± {se:.5} ({:+.2} %; as baked {:+.2} %)",
+            m.node,
+            100.0 * (got / want - 1.0),
+            100.0 * (before / want - 1.0)
+        );
+        moved = moved.max((before / want - 1.0).abs());
+        assert!(
+            (got - want).abs() <= (0.03 * want).max(3.0 * se),
+            "{}: relit {got:.5}, meter {want:.5} ± {se:.5}",
+            m.node
+        );
+    }
+    // The turn matters: as baked, some instance is off by more than the tolerance.
+    assert!(moved > 0.03, "the turn moves the means by at most {moved}");
+}

@@ -626,8 +626,10 @@ export class RadbakeLive {
 
   /**
    * Jacobi iterations L ← ρ ⊙ (D + F L) from the current L until
-   * Σ|ΔL| / Σ|L| is below the bake's tolerance, at most `maxIterations`;
-   * then F L of the final L. Returns { iterations, residual }.
+   * Σ|ΔL| / Σ|L| is below the bake's tolerance, at most `maxIterations`.
+   * F L of the current L is kept between solves (zero with L at the
+   * start), so each iteration is one product, as in the Rust `solve`.
+   * Returns { iterations, residual }.
    */
   solve(maxIterations) {
     const tolerance = this.header.tolerance;
@@ -638,7 +640,6 @@ export class RadbakeLive {
     let iterations = 0;
     let residual = 0;
     while (iterations < maxIterations) {
-      this.product(L, FL);
       let change = 0;
       let total = 0;
       for (let i = 0; i < L.length; i++) {
@@ -648,10 +649,10 @@ export class RadbakeLive {
         L[i] = next;
       }
       residual = total > 0 ? change / total : 0;
+      this.product(L, FL);
       iterations++;
       if (residual < tolerance) break;
     }
-    this.product(L, FL);
     return { iterations, residual };
   }
 

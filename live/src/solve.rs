@@ -247,24 +247,27 @@ impl Live {
     /// relative change Σ|ΔL| / Σ|L| is below the bake's tolerance, at most
     /// `max_iterations`. Rows are summed in column order, so the result
     /// does not depend on the thread count.
+    ///
+    /// F L of the current L is kept between solves (`indirect`, zero with
+    /// L at the start), so each iteration is one product: the first step
+    /// of a solve reuses the last one's F L, and the bounce light of the
+    /// final L is the last iteration's product.
     pub fn solve(&mut self, max_iterations: u32) -> Solve {
         let tolerance = self.data.header.tolerance;
         let mut out = Solve::default();
         while out.iterations < max_iterations {
-            self.indirect = self.product(&self.radiance);
             let next: Vec<[f32; 3]> = (self.direct.par_iter().zip(&self.indirect))
                 .zip(&self.data.albedo)
                 .map(|((d, f), a)| [0, 1, 2].map(|c| a[c] * (d[c] + f[c])))
                 .collect();
             out.residual = relative_change(&next, &self.radiance);
             self.radiance = next;
+            self.indirect = self.product(&self.radiance);
             out.iterations += 1;
             if out.residual < tolerance {
                 break;
             }
         }
-        // The bounce light of the final L.
-        self.indirect = self.product(&self.radiance);
         out
     }
 
