@@ -16,12 +16,17 @@
 //! bake's, as Σ|ΔE| / ΣE over the valid probes' six axis irradiances,
 //! beside the bake's probes as they were.
 //!
+//! With `meter=N`, each of those instances is also read by the meter
+//! ([`radbake::trace::measure`], N samples per node) on the scene with the
+//! sun in mode `indirect` there, and the relit and full bake's `mean`
+//! (over exposed texels, as `report.json`'s) are compared with it.
+//!
 //! With `sun_path = {latitude, day}` the tables are made along that day's
 //! path (256 samples) and the suns are three midpoints between samples
 //! (at 30 %, 50 % and 70 % of the day); without, over the hemisphere's
 //! grid, for three suns off its nodes.
 //!
-//!     cargo run --release --example live_accuracy -- Sponza.lit.gltf texels_per_meter=4 'sky=[0.4,0.5,0.7]' 'sun_path={latitude=42.6,day=172}'
+//!     cargo run --release --example live_accuracy -- Sponza.lit.gltf texels_per_meter=4 'sky=[0.4,0.5,0.7]' 'sun_path={latitude=42.6,day=172}' meter=100000
 
 use glam::Vec3;
 use radbake::config::LightMode;
@@ -37,11 +42,15 @@ fn main() -> anyhow::Result<()> {
         anyhow::anyhow!("usage: live_accuracy <scene> [min_area=10] [key=value]...")
     })?;
     let mut min_area = 10.0f64;
+    let mut meter_samples = 0u64;
     let mut toml = String::new();
     for a in args {
-        match a.strip_prefix("min_area=") {
-            Some(v) => min_area = v.parse()?,
-            None => toml.push_str(&format!("{a}\n")),
+        if let Some(v) = a.strip_prefix("min_area=") {
+            min_area = v.parse()?;
+        } else if let Some(v) = a.strip_prefix("meter=") {
+            meter_samples = v.parse()?;
+        } else {
+            toml.push_str(&format!("{a}\n"));
         }
     }
     let mut config = BakeConfig::from_toml_over(&BakeConfig::default(), &toml)?;
@@ -162,6 +171,15 @@ fn main() -> anyhow::Result<()> {
         }
         let relit = with(&relit_live);
         let exact = with(&exact_live);
+        if meter_samples > 0 {
+            let settings = radbake::trace::measure::MeterSettings {
+                samples: meter_samples,
+                normal: Default::default(),
+                sky: Vec3::from(config.sky),
+                seed: 24301,
+            };
+            against_the_meter(&full, &relit, &full_scene, &settings, min_area)?;
+        }
         let reference = &full.maps.lightmaps.texel_values;
         report(
             (elev, azim, update_ms, solve.iterations, full_s),
@@ -171,6 +189,70 @@ fn main() -> anyhow::Result<()> {
             min_area,
         );
     }
+    Ok(())
+}
+
+/// Per instance of at least `min_area` m²: the relit and the full bake's
+/// `mean` (what it receives, over its exposed texels, as `report.json`'s)
+/// against the meter's reading of the scene with the sun in mode
+/// `indirect` there (independent of atlas, texels, patches and gather).
+fn against_the_meter(
+    full: &radbake::Bake,
+    relit: &[Vec3],
+    scene: &radbake::scene::Scene,
+    settings: &radbake::trace::measure::MeterSettings,
+    min_area: f64,
+) -> anyhow::Result<()> {
+    let reports = full.instance_reports();
+    let nodes: Vec<String> = (reports.iter())
+        .filter(|r| r.area >= min_area)
+        .map(|r| r.node.clone())
+        .collect();
+    let t = Instant::now();
+    let readings = radbake::trace::measure::Meter::new(scene)
+        .measure(&nodes, settings)
+        .map_err(anyhow::Error::msg)?;
+    // Relit means, as `instance_reports` makes them.
+    let n = full.scene.instances.len();
+    let mut sums = vec![[0.0f64; 2]; n];
+    for (t, v) in relit.iter().enumerate() {
+        let exposed = if full.transport.valid[t] {
+            full.burial.exposed(t) as f64
+        } else {
+            0.0
+        };
+        let a = full.texels.area[t] as f64;
+        let s = &mut sums[full.texels.instance[t] as usize];
+        s[0] += a;
+        s[1] += a * exposed * v.element_sum() as f64 / 3.0;
+    }
+    println!(
+        "against the meter ({} samples per node, {:.0} s): | instance | m² | meter | ± | relit | full bake |",
+        settings.samples,
+        t.elapsed().as_secs_f64()
+    );
+    let (mut ok_relit, mut ok_full) = (0, 0);
+    for m in &readings {
+        let i = (reports.iter()).position(|r| r.node == m.node).unwrap();
+        let want = m.mean.iter().sum::<f64>() / 3.0;
+        let se = m.std_error.iter().map(|s| s * s).sum::<f64>().sqrt() / 3.0;
+        let got = sums[i][1] / sums[i][0];
+        let baked = reports[i].mean.iter().sum::<f32>() as f64 / 3.0;
+        let within = |x: f64| (x - want).abs() <= (0.03 * want).max(3.0 * se);
+        ok_relit += within(got) as u32;
+        ok_full += within(baked) as u32;
+        println!(
+            "| {} | {:.1} | {want:.4} | {se:.4} | {:+.2} % | {:+.2} % |",
+            m.node,
+            reports[i].area,
+            100.0 * (got / want - 1.0),
+            100.0 * (baked / want - 1.0)
+        );
+    }
+    println!(
+        "within 3 % or 3 standard errors of the meter: relit {ok_relit} of {}, full bake {ok_full}",
+        readings.len()
+    );
     Ok(())
 }
 

@@ -9,7 +9,8 @@
 //    and `probeDelta` (the probes' change) after it;
 // 2. as a page uses it (web/radbake-three.js: the `.glb`, its probes and
 //    light layers, `loadRadbakeLive`'s `setSun`): the update, the probes'
-//    change, and the lightmap pages and probes recombined.
+//    change, and the lightmap pages and probes recombined;
+// 3. the same with the lightmap alone (the probes not given).
 //
 // Prints the load times, the median and worst update and its parts, and
 // the iterations. A benchmark, not a test:
@@ -115,6 +116,11 @@ try {
     const t5 = performance.now();
     const paged = [];
     for (let s = 0; s < steps; s++) paged.push(live.setSun(mid(start + s + 1)));
+    // The lightmap alone: the same, the probes not given.
+    const plain = await new GLTFLoader().register((p) => new R.RadbakeLightmapPlugin(p)).loadAsync(`/bake/${manifest.baked_gltf}`);
+    const pageOnly = await R.loadRadbakeLive('/bake/manifest.json', await R.loadRadbakeLayers('/bake/manifest.json', plain.scene), { sun: { direction: mid(start) } });
+    const lightmap = [];
+    for (let s = 0; s < steps; s++) lightmap.push(pageOnly.setSun(mid(start + s + 1)));
     return {
       patches: h.patches,
       entries: h.entries,
@@ -128,6 +134,7 @@ try {
       first,
       alone,
       paged,
+      lightmap,
     };
   }, steps);
   const r = result;
@@ -145,6 +152,10 @@ try {
   console.log(
     `  ${steps} setSun (median / worst): update ${stat(r.paged, 'solve')} + ${stat(r.paged, 'pages')} ms (solve, pages), ` +
       `probes' change ${stat(r.paged, 'probes')} ms, lightmap and probes recombined ${stat(r.paged, 'lightmap')} ms; in all ${stat(r.paged, 'ms')} ms (${iterations(r.paged)})`,
+  );
+  console.log(
+    `  the lightmap alone (no probes given), ${steps} setSun: update ${stat(r.lightmap, 'solve')} + ${stat(r.lightmap, 'pages')} ms, ` +
+      `recombined ${stat(r.lightmap, 'lightmap')} ms; in all ${stat(r.lightmap, 'ms')} ms`,
   );
 } finally {
   await browser.close();
