@@ -482,3 +482,116 @@ fn the_relit_porch_matches_the_meter() {
     // The turn matters: as baked, some instance is off by more than the tolerance.
     assert!(moved > 0.03, "the turn moves the means by at most {moved}");
 }
+
+/// `radbake preview --live` moves the probes as `radbake relight` does: a
+/// porch with a dynamic node (a small copy of the floor, lit by the
+/// probes per vertex), opened at the baked sun and turned 30°: the
+/// model's probes are relight's at that sun, and the dynamic node's
+/// vertices are lit from them (no GPU: the solve and the probes, not the
+/// upload).
+#[test]
+fn the_preview_moves_the_probes_with_the_sun() {
+    use radbake::preview::live::{angles, baked_direction, LiveView};
+    use radbake::preview::model::Model;
+    let dir = temp_dir("live-preview-probes");
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(scene_path("porch.gltf")).unwrap()).unwrap();
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    nodes.push(
+        serde_json::json!({"name": "crate", "mesh": 0, "translation": [0.0, 0.8, 0.0],
+        "scale": [0.2, 0.2, 0.2], "extras": {"radbake": {"dynamic": true}}}),
+    );
+    let n = nodes.len() - 1;
+    doc["scenes"][0]["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(n.into());
+    let scene = dir.join("porch_crate.gltf");
+    std::fs::write(&scene, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let bake = dir.join("bake");
+    let (s, b) = (scene.to_str().unwrap(), bake.to_str().unwrap());
+    run_ok(
+        [
+            "bake",
+            s,
+            "--live",
+            "--sky",
+            "0.3,0.4,0.55",
+            "--texels-per-meter",
+            "4",
+        ]
+        .iter()
+        .chain(&["--quiet", "-o", b]),
+    );
+    let glb = bake.join("porch_crate.baked.glb");
+    let to_sun = baked_direction(&glb).unwrap();
+    let turned = glam::Quat::from_rotation_y(30f32.to_radians()) * to_sun;
+    let relit = dir.join("relit");
+    let t = turned.to_array().map(|c| c.to_string()).join(",");
+    run_ok([
+        "relight",
+        b,
+        "--sun-direction",
+        &t,
+        "--quiet",
+        "-o",
+        relit.to_str().unwrap(),
+    ]);
+    let want = radbake::probes::Probes::read(&relit.join("probes.json")).unwrap();
+
+    let start = radbake::output::relight::Relight {
+        sun_direction: to_sun,
+        sun_irradiance: None,
+        sky: None,
+        weights: Vec::new(),
+    };
+    let mut model = Model::load_relit(&glb, &[], Some(&start)).unwrap();
+    let lit: Vec<usize> = (0..model.vertices.len())
+        .filter(|&i| model.vertices[i].probe[3] == radbake::preview::gpu::PROBE_LIT)
+        .collect();
+    assert!(!lit.is_empty(), "the dynamic node is lit by the probes");
+    let before: Vec<[f32; 4]> = lit.iter().map(|&i| model.vertices[i].probe).collect();
+    let mut view = LiveView::open(&glb, &[], Some(&start)).unwrap();
+    let (e0, a0) = (view.elevation, view.azimuth);
+    let (e1, a1) = angles(turned);
+    view.turn(e1 - e0, a1 - a0);
+    let (_, _, moved) = view.relight(&mut model).unwrap();
+    assert!(moved, "the probes moved");
+    let got = model.probes.as_ref().unwrap();
+    let cubes = |p: &radbake::probes::Probes| probe_cubes(&p.sh, &p.valid);
+    let error = rel_error(&cubes(got), &cubes(&want));
+    let baked = radbake::probes::Probes::read(&bake.join("probes.json")).unwrap();
+    let change = rel_error(&cubes(&baked), &cubes(&want));
+    // The vertices: lit from the new probes.
+    let mut worst = 0.0f32;
+    let mut changed = 0.0f32;
+    for (&i, b) in lit.iter().zip(&before) {
+        let v = &model.vertices[i];
+        let w = radbake::preview::probe_light::vertex_light(
+            Some(&want),
+            Vec3::from(v.position),
+            Vec3::from(v.normal),
+        );
+        let scale = Vec3::from_slice(&w[..3]).max_element().max(1e-6);
+        worst = worst.max(
+            (Vec3::from_slice(&v.probe[..3]) - Vec3::from_slice(&w[..3]))
+                .abs()
+                .max_element()
+                / scale,
+        );
+        changed = changed.max(
+            (Vec3::from_slice(&v.probe[..3]) - Vec3::from_slice(&b[..3]))
+                .abs()
+                .max_element()
+                / scale,
+        );
+    }
+    println!(
+        "preview --live, sun turned 30°: probes {error:.2e} off relight's (relight's differ from the bake's by {change:.2e}); {} probe-lit vertices, worst {worst:.2e} off, changed by up to {changed:.2e}",
+        lit.len()
+    );
+    assert!(change > 0.01, "the turn moves the probes by {change}");
+    assert!(error < 1e-3, "probes {error} off relight's");
+    assert!(worst < 1e-3, "a vertex {worst} off relight's probes");
+    assert!(changed > 0.01, "the vertices' light changed by {changed}");
+}

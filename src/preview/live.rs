@@ -4,8 +4,12 @@
 //!
 //! The pages shown are what [`crate::output::relight::relit`] gives: the
 //! bake's other layers at their weights (summed once, at start) plus the
-//! live layer from the run time's solution. The live light itself is one
-//! of the preview's real-time lights, turned with the sun.
+//! live layer from the run time's solution. The probes follow as
+//! relight's do: the model's probes at the starting sun plus the change
+//! of [`Live::probe_delta`] since then, and the vertices they light (the
+//! dynamic nodes', [`super::probe_light::vertex_light`]) are lit again.
+//! The live light itself is one of the preview's real-time lights, turned
+//! with the sun.
 
 use super::model::{place_sun, LinearPage, Model};
 use super::renderer::Renderer;
@@ -60,10 +64,17 @@ pub struct LiveView {
     /// The sun: elevation, azimuth (degrees).
     pub elevation: f32,
     pub azimuth: f32,
-    /// Milliseconds of the last update (solve, texels, pages) and its
-    /// iterations.
+    /// Milliseconds of the last update (solve, texels, pages, probes) and
+    /// its iterations.
     pub update_ms: f64,
     pub iterations: u32,
+    /// The probes' change at the starting sun (None: the file has no
+    /// probes' rays), and the model's probes then (taken at the first
+    /// update).
+    delta0: Option<Vec<radbake_live::probes::Sh9>>,
+    sh0: Option<Vec<crate::probes::Sh9>>,
+    /// Ranges of the model's vertices lit by the probes.
+    probe_lit: Vec<std::ops::Range<usize>>,
 }
 
 impl LiveView {
@@ -104,17 +115,34 @@ impl LiveView {
         });
         let (base, _) = crate::output::combine::recombined_replacing(dir, &base_weights, replace)?;
         let (elevation, azimuth) = angles(r.sun_direction);
+        let irradiance = r.sun_irradiance.unwrap_or(Vec3::from(light.irradiance));
+        let mut live = Live::new(data);
+        // The probes' change is counted from the model's: as baked (no
+        // change), or relit for `sun` (its change, as relight gives it).
+        let delta0 = match sun {
+            Some(_) => {
+                live.update(&[Sun {
+                    direction: r.sun_direction.to_array(),
+                    irradiance: irradiance.to_array(),
+                }])?;
+                live.probe_delta()
+            }
+            None => live.probe_delta().map(|d| vec![[[0.0; 3]; 9]; d.len()]),
+        };
         Ok(LiveView {
-            live: Live::new(data),
+            live,
             base: base.into_iter().map(|p| p.pages[0].clone()).collect(),
             pages: Vec::new(),
             size,
-            irradiance: r.sun_irradiance.unwrap_or(Vec3::from(light.irradiance)),
+            irradiance,
             light: light.name,
             elevation,
             azimuth,
             update_ms: 0.0,
             iterations: 0,
+            delta0,
+            sh0: None,
+            probe_lit: Vec::new(),
         })
     }
 
@@ -133,12 +161,7 @@ impl LiveView {
     /// The run time's (a sun direction not finite).
     pub fn update(&mut self, model: &mut Model, renderer: &mut Renderer) -> Result<()> {
         let t = Instant::now();
-        let towards = direction(self.elevation, self.azimuth);
-        let solve = self.live.update(&[Sun {
-            direction: towards.to_array(),
-            irradiance: self.irradiance.to_array(),
-        }])?;
-        self.live.write_pages(&mut self.pages);
+        let (towards, iterations, moved) = self.relight(model)?;
         for (i, (live, base)) in self.pages.iter().zip(&self.base).enumerate() {
             let page = LinearPage {
                 width: self.size.0,
@@ -149,10 +172,95 @@ impl LiveView {
             };
             renderer.write_linear_page(i, &page);
         }
+        if moved {
+            for r in &self.probe_lit {
+                renderer.write_vertices(r.start, &model.vertices[r.clone()]);
+            }
+            if let Some(p) = &model.probes {
+                renderer.set_probes(p);
+            }
+        }
         place_sun(&mut model.scene, &self.light, towards, self.irradiance);
         renderer.set_lights(&model.scene, &model.light_channels);
         self.update_ms = t.elapsed().as_secs_f64() * 1e3;
-        self.iterations = solve.iterations;
+        self.iterations = iterations;
         Ok(())
     }
+
+    /// The solve for the current sun, the live layer's pages into
+    /// `self.pages` and [`LiveView::move_probes`]: what
+    /// [`LiveView::update`] then writes to the GPU. Returns the sun's
+    /// direction, the iterations and whether the probes moved.
+    ///
+    /// # Errors
+    /// As [`LiveView::update`].
+    pub fn relight(&mut self, model: &mut Model) -> Result<(Vec3, u32, bool)> {
+        let towards = direction(self.elevation, self.azimuth);
+        let solve = self.live.update(&[Sun {
+            direction: towards.to_array(),
+            irradiance: self.irradiance.to_array(),
+        }])?;
+        self.live.write_pages(&mut self.pages);
+        let moved = self.move_probes(model)?;
+        Ok((towards, solve.iterations, moved))
+    }
+
+    /// The model's probes for the current solution (the model's as loaded,
+    /// plus the change since the starting sun), and the probe-lit vertices
+    /// lit from them; false where nothing moved (no probes, or no probes'
+    /// rays).
+    ///
+    /// # Errors
+    /// A `live.bin` whose probe count is not the model's probes'.
+    pub fn move_probes(&mut self, model: &mut Model) -> Result<bool> {
+        let (Some(delta0), Some(probes)) = (&self.delta0, &mut model.probes) else {
+            return Ok(false);
+        };
+        let Some(delta) = self.live.probe_delta() else {
+            return Ok(false);
+        };
+        if delta.len() != probes.sh.len() {
+            bail!(
+                "live.bin has {} probes, probes.json {}",
+                delta.len(),
+                probes.sh.len()
+            );
+        }
+        if self.sh0.is_none() {
+            self.sh0 = Some(probes.sh.clone());
+            self.probe_lit = probe_lit_ranges(&model.vertices);
+        }
+        let sh0 = self.sh0.as_ref().expect("taken above");
+        for (((sh, s0), d), d0) in probes.sh.iter_mut().zip(sh0).zip(&delta).zip(delta0) {
+            for k in 0..9 {
+                sh[k] = s0[k] + (Vec3::from(d[k]) - Vec3::from(d0[k]));
+            }
+        }
+        let probes = model.probes.as_ref();
+        for r in &self.probe_lit {
+            for v in &mut model.vertices[r.clone()] {
+                v.probe = super::probe_light::vertex_light(
+                    probes,
+                    Vec3::from(v.position),
+                    Vec3::from(v.normal),
+                );
+            }
+        }
+        Ok(true)
+    }
+}
+
+/// The runs of consecutive vertices lit by the probes.
+fn probe_lit_ranges(vertices: &[super::gpu::Vertex]) -> Vec<std::ops::Range<usize>> {
+    let mut out: Vec<std::ops::Range<usize>> = Vec::new();
+    for (i, v) in vertices.iter().enumerate() {
+        if v.probe[3] != super::gpu::PROBE_LIT {
+            continue;
+        }
+        match out.last_mut() {
+            Some(r) if r.end == i => r.end = i + 1,
+            _ => out.push(i..i + 1),
+        }
+    }
+    out
 }

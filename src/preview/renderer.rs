@@ -361,7 +361,7 @@ impl Renderer {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vertices"),
                 contents: bytemuck::cast_slice(&model.vertices),
-                usage: wgpu::BufferUsages::VERTEX,
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
             })
         });
         Renderer {
@@ -401,6 +401,27 @@ impl Renderer {
 
     /// Replaces linear lightmap page `index` with `page` (its size); false
     /// where the page is not a linear one of that size (nothing written).
+    /// Rewrites the model's vertices from `first` on (a live sun's probe
+    /// light: [`super::live::LiveView::move_probes`]).
+    pub fn write_vertices(&self, first: usize, vertices: &[super::gpu::Vertex]) {
+        if let Some(buffer) = &self.vertices {
+            let offset = (first * std::mem::size_of::<super::gpu::Vertex>()) as u64;
+            self.queue
+                .write_buffer(buffer, offset, bytemuck::cast_slice(vertices));
+        }
+    }
+
+    /// New probes for the probes view: its spheres are built again from
+    /// them at the next frame that shows them.
+    pub fn set_probes(&mut self, probes: &Probes) {
+        if let Some((p, _)) = &mut self.probes {
+            p.clone_from(probes);
+        } else if let Some(s) = self.spheres.take() {
+            self.probes = Some((probes.clone(), s.material));
+        }
+        self.spheres = None;
+    }
+
     pub fn write_linear_page(&self, index: usize, page: &super::model::LinearPage) -> bool {
         match self.linear_pages.get(index) {
             Some(Some(t)) if (t.width(), t.height()) == (page.width, page.height) => {
