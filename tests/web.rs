@@ -724,6 +724,49 @@ fn viewer_live_sun_matches_the_preview() {
     }
 }
 
+/// The viewer's lit view of a live bake draws the sun in real time, with
+/// shadow maps, turned with its bounce light: the porch's sun turned 30°;
+/// without the real-time sun (`realtime=0`) the image is far darker, and
+/// the sun's share matches `radbake preview --sun-direction` on what the
+/// roof does not shade (the preview draws it unshadowed without a
+/// distance field, so the images are not compared pixel by pixel).
+#[test]
+#[ignore = "needs tests/web/node_modules and Chromium (CI runs it)"]
+fn viewer_draws_the_live_sun() {
+    let out = live_porch("web-live-lit");
+    let glb = out.join("porch.baked.glb");
+    let (_, later) = turned_sun(&out, 30.0);
+    let server = serve(&out);
+    let query = format!(
+        "url=/bake/porch.baked.glb&camera=cam&size=400x300&tonemap=none&exposure=0&sun={later}"
+    );
+    let png = out.join("three_lit.png");
+    let report = open_viewer(server.port, &query, &png);
+    assert_eq!(report["errors"], serde_json::json!([]));
+    assert_eq!(report["realtime"], serde_json::json!(["sun"]), "{report}");
+    let three = linear_pixels(&png);
+    let dark = out.join("three_no_sun.png");
+    let report = open_viewer(server.port, &format!("{query}&realtime=0"), &dark);
+    assert_eq!(report["errors"], serde_json::json!([]));
+    let (without, _) = agreement(&linear_pixels(&dark), &three);
+    let ours = preview(
+        &glb,
+        "cam",
+        "400x300",
+        &["--sun-direction", later.as_str()],
+        &out.join("preview_lit.png"),
+    );
+    let (mean, _) = agreement(&three, &ours);
+    eprintln!(
+        "live sun drawn, 30°: without the real-time sun the image is {without:.4} of it; three.js (shadowed) / preview (unshadowed) mean {mean:.4}"
+    );
+    assert!(
+        without < 0.6,
+        "the sun's direct light is {without} of the image"
+    );
+    assert!(mean < 1.0 && mean > 0.6, "three.js / preview {mean}");
+}
+
 /// Bad live input in the viewer is an error naming it, never a wrong
 /// image: a `live.bin` with a byte of its body flipped (its checksum), one
 /// cut short, a sun of zero length, and a weight for the live layer

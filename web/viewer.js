@@ -19,12 +19,18 @@
 //             --sun-direction` / `radbake preview --sun-direction`
 //   sun_irradiance  r,g,b W/m² (default: as baked)
 //   sky       r,g,b: the sky's radiance (its layer × new / baked)
+//   realtime  0: leave out the real-time lights (as `radbake preview
+//             --no-realtime-lights`). By default the lit view draws, with
+//             shadow maps, the lights whose direct light the lightmap does
+//             not hold (mode live, indirect or realtime): a live sun turned
+//             with its bounce light. The other views draw none.
 // A bake with light layers gets an intensity slider (0–4) and a colour per
 // layer (not the live layer, whose light is re-solved). A live bake gets
 // the sun's controls: a time-of-day slider along its sun path, or, for a
 // grid, azimuth (from +X towards +Z, as `radbake preview`) and elevation
 // sliders, and the last update's time. `window.radbake` reports { ready,
-// error, cameras, probes, layers, live } for scripts (layers: the names;
+// error, cameras, probes, layers, live, realtime } for scripts (layers: the names;
+// realtime: the names of the real-time lights drawn;
 // live: { light, sun, ms, iterations, residual } of the last update, null
 // without a live bake); ready comes after the `layer`, `sun` and `sky`
 // parameters are applied, and an unknown layer name, a malformed or
@@ -41,12 +47,14 @@ const state = {
   exposure: Number(params.get('exposure') || 0),
   tonemap: params.get('tonemap') || 'aces',
 };
-window.radbake = { ready: false, error: null, cameras: [], probes: 0, layers: [], live: null };
+window.radbake = { ready: false, error: null, cameras: [], probes: 0, layers: [], live: null, realtime: [] };
 
 const canvas = document.getElementById('view');
 const size = params.get('size') ? params.get('size').split('x').map(Number) : null;
 const renderer = new THREE.WebGLRenderer({ canvas, antialias: false, preserveDrawingBuffer: true });
 renderer.setPixelRatio(1);
+renderer.shadowMap.enabled = true;
+renderer.shadowMap.type = THREE.PCFShadowMap;
 const scene = new THREE.Scene();
 const overlay = new THREE.Scene(); // probe spheres and probe-lit dynamic nodes
 let camera = new THREE.PerspectiveCamera(50, 1, 0.05, 1000);
@@ -57,6 +65,8 @@ let layers = null;
 let pendingWeights = null; // slider weights not applied yet: { name: [r, g, b] }
 let live = null; // loadRadbakeLive's handle, for a live bake
 let pendingSun = null; // a slider's sun direction not applied yet
+const realtime = []; // the real-time lights drawn: { light, name, directional }
+let sceneBounds = null; // the glTF scene's world box (the sun's shadow camera covers it)
 const reshades = []; // re-shade probe-lit geometry after the probes change
 const originals = new Map(); // mesh -> its lit (Lambert) material
 
@@ -108,6 +118,7 @@ function applyView() {
   for (const [mesh, lit] of originals) mesh.material = forView(lit);
   renderer.toneMapping = state.tonemap === 'none' ? THREE.NoToneMapping : THREE.ACESFilmicToneMapping;
   renderer.toneMappingExposure = 2 ** state.exposure;
+  for (const { light } of realtime) light.visible = state.view === 'lit' && params.get('realtime') !== '0';
   overlay.visible = state.view === 'probes' || overlay.userData.dynamic;
   for (const s of overlay.userData.spheres || []) s.visible = state.view === 'probes';
 }
@@ -276,9 +287,65 @@ function angles([x, y, z]) {
   return [(Math.asin(Math.min(Math.max(y / len, -1), 1)) * 180) / Math.PI, (Math.atan2(z, x) * 180) / Math.PI];
 }
 
+/**
+ * A real-time light for glTF light `l` (GLTFLoader's, taken out of the
+ * scene): a directional light is made again in the scene, its shadow
+ * camera an orthographic box around the scene's bounds; a point or spot
+ * light goes back where it was. Intensities as the glTF's (W/m² and W/sr
+ * as three.js's lux and candela: three's Lambert gives albedo × E cos θ
+ * / π, the lightmap's albedo × value). Returns { light, name, directional }.
+ */
+function realtimeLight(l) {
+  const name = l.name;
+  if (!l.isDirectionalLight) {
+    l.castShadow = true;
+    scene.attach(l); // its world transform kept
+    return { light: l, name, directional: false };
+  }
+  const towards = new THREE.Vector3(0, 0, 1).applyQuaternion(l.getWorldQuaternion(new THREE.Quaternion()));
+  l.removeFromParent();
+  const light = new THREE.DirectionalLight(l.color.clone(), l.intensity);
+  light.name = name;
+  light.castShadow = true;
+  light.shadow.mapSize.set(4096, 4096);
+  scene.add(light, light.target);
+  const entry = { light, name, directional: true };
+  aimSun(entry, towards.toArray());
+  return entry;
+}
+
+/** Points directional light `entry` towards-the-sun `direction`, its shadow box around the scene. */
+function aimSun({ light }, direction) {
+  const d = new THREE.Vector3(...direction).normalize();
+  const centre = sceneBounds.getCenter(new THREE.Vector3());
+  const r = Math.max(sceneBounds.getSize(new THREE.Vector3()).length() / 2, 1e-3);
+  light.position.copy(centre).addScaledVector(d, 2 * r);
+  light.target.position.copy(centre);
+  const cam = light.shadow.camera;
+  Object.assign(cam, { left: -r, right: r, top: r, bottom: -r, near: 0.5 * r, far: 3.5 * r });
+  cam.updateProjectionMatrix();
+  light.shadow.bias = -0.0005;
+  light.shadow.normalBias = (2 * r) / light.shadow.mapSize.x;
+  light.updateMatrixWorld(true);
+  light.target.updateMatrixWorld(true);
+}
+
+/** The live light drawn in real time follows the last update: direction, colour and irradiance. */
+function followLiveSun() {
+  const suns = realtime.filter((r) => r.directional && r.mode === 'live');
+  const entry = suns.find((r) => r.name === live.light) || (suns.length === 1 ? suns[0] : null);
+  if (!entry) return;
+  const { direction, irradiance } = live.sun();
+  aimSun(entry, direction);
+  const e = Math.max(...irradiance);
+  entry.light.intensity = e;
+  if (e > 0) entry.light.color.setRGB(irradiance[0] / e, irradiance[1] / e, irradiance[2] / e, THREE.LinearSRGBColorSpace);
+}
+
 /** `window.radbake.live` and the update time shown, from the last update. */
 function reportLive() {
   const { cost } = live;
+  followLiveSun();
   const [elevation, azimuth] = angles(live.sun().direction);
   window.radbake.live = { light: live.light, sun: live.sun().direction, ms: cost.ms, iterations: cost.iterations, residual: cost.residual, solve: cost.solve, pages: cost.pages, lightmap: cost.lightmap };
   document.getElementById('live-cost').textContent =
@@ -339,12 +406,21 @@ async function load(url) {
   scene.clear();
   overlay.clear();
   originals.clear();
-  // The glTF's punctual lights are baked into the lightmaps already: three's
-  // GLTFLoader would add them as real-time lights and count them twice.
+  // The glTF's punctual lights: the baked ones are in the lightmaps already
+  // (three's GLTFLoader would add them as real-time lights and count them
+  // twice); those whose direct light the lightmap leaves out are drawn.
   const lights = [];
   gltf.scene.traverse((o) => o.isLight && lights.push(o));
-  for (const l of lights) l.removeFromParent();
   scene.add(gltf.scene);
+  scene.updateMatrixWorld(true);
+  sceneBounds = new THREE.Box3().setFromObject(gltf.scene);
+  realtime.length = 0;
+  for (const l of lights) {
+    const mode = l.userData && l.userData.radbake && l.userData.radbake.mode;
+    if (['live', 'indirect', 'realtime'].includes(mode)) realtime.push({ ...realtimeLight(l), mode });
+    else l.removeFromParent();
+  }
+  window.radbake.realtime = realtime.map((r) => r.name);
   reshades.length = 0;
   probes = params.get('probes') ? await loadRadbakeProbes(params.get('probes')) : null;
   window.radbake.probes = probes ? probes.count : 0;
@@ -375,6 +451,8 @@ async function load(url) {
     if (o.isMesh) {
       const lit = lambert(o.material);
       originals.set(o, lit);
+      o.castShadow = true;
+      o.receiveShadow = true;
     }
   });
   gltfCameras = gltf.cameras;

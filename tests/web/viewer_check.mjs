@@ -56,7 +56,7 @@ try {
   if (state.error) errors.push(state.error);
   const data = await tab.evaluate(() => document.getElementById('view').toDataURL('image/png'));
   fs.writeFileSync(out, Buffer.from(data.split(',')[1], 'base64'));
-  console.log(JSON.stringify({ three: state.three, cameras: state.cameras, probes: state.probes, layers: state.layers, live: state.live, errors }));
+  console.log(JSON.stringify({ three: state.three, cameras: state.cameras, probes: state.probes, layers: state.layers, live: state.live, realtime: state.realtime, errors }));
 } finally {
   await browser.close();
 }
