@@ -13,6 +13,12 @@ use radbake_live::{Live, Sun};
 use std::path::Path;
 use std::process::Command;
 
+/// Puts the porch's light `sun` in `mode`, in `config` and on `scene`.
+fn sun_mode(config: &mut BakeConfig, scene: &mut radbake::scene::Scene, mode: LightMode) {
+    config.light_modes.lights.insert("sun".into(), mode);
+    config.light_modes.apply(scene).unwrap();
+}
+
 /// The porch baked with its sun live (sun only), the sun turned to a
 /// direction of the table's grid.
 fn porch_at_node() -> (radbake::scene::Scene, BakeConfig, Vec3) {
@@ -23,11 +29,7 @@ fn porch_at_node() -> (radbake::scene::Scene, BakeConfig, Vec3) {
         stitch_seams: false,
         ..BakeConfig::default()
     };
-    config
-        .light_modes
-        .lights
-        .insert("sun".into(), LightMode::Live);
-    config.light_modes.apply(&mut scene).unwrap();
+    sun_mode(&mut config, &mut scene, LightMode::Live);
     let towards = Vec3::from(radbake_live::directions::node_direction(
         config.live_grid,
         7,
@@ -405,11 +407,7 @@ fn the_relit_porch_matches_the_meter() {
         probes: false,
         ..BakeConfig::default()
     };
-    config
-        .light_modes
-        .lights
-        .insert("sun".into(), LightMode::Live);
-    config.light_modes.apply(&mut scene).unwrap();
+    sun_mode(&mut config, &mut scene, LightMode::Live);
     let bake = radbake::bake(&scene, &config, &Silent).unwrap();
     let to_sun = -scene.lights[0].direction;
     let turned = glam::Quat::from_rotation_y(30f32.to_radians()) * to_sun;
@@ -446,12 +444,7 @@ fn the_relit_porch_matches_the_meter() {
     }
 
     let mut metered = scene.clone();
-    let mut indirect = config.clone();
-    indirect
-        .light_modes
-        .lights
-        .insert("sun".into(), LightMode::Indirect);
-    indirect.light_modes.apply(&mut metered).unwrap();
+    sun_mode(&mut config.clone(), &mut metered, LightMode::Indirect);
     metered.lights[0].direction = -turned;
     let settings = MeterSettings {
         samples: 200_000,
